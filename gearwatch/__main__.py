@@ -1,0 +1,5 @@
+import sys
+
+from gearwatch.cli import main
+
+sys.exit(main())
