@@ -1,7 +1,8 @@
 """The ``gearwatch`` command line.
 
 Each sub-command lives in its own module under :mod:`gearwatch.commands` with a
-``register(subparsers)`` function that adds its parser and sets ``func``. Heavy
+``register(subparsers)`` function that adds its parser and sets ``func`` (a function
+taking the parsed arguments and returning the exit code); modules are found automatically. Heavy
 imports happen inside the command's function so that ``gearwatch --help`` stays fast.
 """
 
@@ -10,17 +11,19 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import pkgutil
 import sys
 from collections.abc import Sequence
 
 from gearwatch.errors import GearwatchError
 from gearwatch.version import __version__
 
-COMMAND_MODULES = (
-    "gearwatch.commands.analyze",
-    "gearwatch.commands.demo",
-    "gearwatch.commands.bench",
-)
+
+def command_modules() -> list[str]:
+    """Every module in :mod:`gearwatch.commands` is a sub-command (sorted by name)."""
+    import gearwatch.commands as package
+
+    return sorted(f"{package.__name__}.{m.name}" for m in pkgutil.iter_modules(package.__path__))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -30,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"gearwatch {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for module_name in COMMAND_MODULES:
+    for module_name in command_modules():
         importlib.import_module(module_name).register(subparsers)
     return parser
 
