@@ -85,10 +85,16 @@ class ChannelAnalysis:
     """Mean pinion speed."""
     samples_per_rev: int
     metrics: dict[str, float]
+    """Whole-revolution metrics named in :data:`METRIC_NAMES`; without tooth counts only
+    ``rms``, ``peak``, ``crest`` and ``kurtosis`` (the others need the mesh order)."""
     teeth: list[ToothResult] = field(default_factory=list)
     worst_tooth: int | None = None
     curves: dict[str, np.ndarray] = field(default_factory=dict)
     """float32 arrays: ``pinion_average``, ``gear_average``, ``difference``, ``mci_raw``, ``mci``, ``speed_rpm``."""
+    baseline_stats: dict[str, float] = field(default_factory=dict)
+    """This record's contribution to running baselines: ``residual_variance`` (NA4) and
+    ``envelope_variance`` (NB4). The caller averages them over earlier records and passes the
+    result back in explicitly (:func:`gearwatch.pipeline.analyze_record`)."""
 
 
 @dataclass(frozen=True)
