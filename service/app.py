@@ -1,0 +1,86 @@
+"""The FastAPI application factory."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
+
+from gearwatch.version import __version__
+from service.errors import install_error_handlers
+from service.metrics import RequestMetrics, metrics_middleware
+from service.settings import Settings, get_settings
+
+STATIC_DIR = Path(__file__).resolve().parent / "static"
+
+DESCRIPTION = """\
+Per-tooth condition monitoring of gearbox test rigs: records, their per-tooth moving cepstrum
+integral (MCI) and classic gear metrics, trends and alarms.
+
+**Authentication**: every endpoint except `GET /health` needs an API key sent as
+`Authorization: Bearer <key>` (create one with `gearwatch keys create --role viewer|operator|admin`).
+Viewers read; operators also upload, re-process, acknowledge alarms and change alarm rules;
+admins also manage keys and read the audit log.
+
+**Errors**: every 4xx/5xx body is `{"error": {"code": ..., "message": ..., "details": ...}}`.
+"""
+
+OPENAPI_TAGS = [
+    {"name": "health", "description": "Liveness and Prometheus metrics."},
+    {"name": "rigs", "description": "Test rigs and their per-tooth trends."},
+    {"name": "campaigns", "description": "Campaigns (a manifest: rig, channels, tachometer)."},
+    {"name": "records", "description": "Record files: upload, re-process, results, curves."},
+    {"name": "alarms", "description": "Alarms, their history, acknowledgement and rules."},
+    {"name": "admin", "description": "API keys and the audit log (admin role)."},
+]
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """Build the application: database, routers, error mapping, metrics, dashboard.
+
+    The database is opened (and migrated when ``settings.auto_migrate``) at start-up,
+    so creating the app is cheap and has no side effects.
+    """
+    from service import routers
+    from storage.db import open_database
+
+    settings = settings or get_settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        engine, factory = open_database(settings.database_url, auto_migrate=settings.auto_migrate)
+        app.state.engine = engine
+        app.state.session_factory = factory
+        try:
+            yield
+        finally:
+            engine.dispose()
+
+    app = FastAPI(
+        title="gearwatch",
+        version=__version__,
+        description=DESCRIPTION,
+        openapi_tags=OPENAPI_TAGS,
+        lifespan=lifespan,
+        responses={
+            401: {"description": "Missing or unknown API key", "model": _error_model()},
+            422: {"description": "Invalid request", "model": _error_model()},
+        },
+    )
+    app.state.settings = settings
+    app.state.metrics = RequestMetrics()
+    install_error_handlers(app)
+    app.middleware("http")(metrics_middleware(app.state.metrics, app))
+    for router in routers.ALL:
+        app.include_router(router)
+    app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+    return app
+
+
+def _error_model() -> type:
+    from service.schemas import ErrorBody
+
+    return ErrorBody
