@@ -59,7 +59,8 @@ class Campaign:
     rig: RigConfig
     sample_rate_hz: float | None
     """Used when a record file does not carry its own rate."""
-    tachometer: TachometerConfig
+    tachometer: TachometerConfig | None
+    """None when the manifest has no ``[tachometer]``: records are read, the pipeline rejects them."""
     channels: tuple[ChannelConfig, ...]
     records: tuple[RecordEntry, ...] = ()
     root: Path = field(default=Path("."))
