@@ -1,0 +1,330 @@
+"""Alarm logic per rig, channel, tooth and indicator: baseline, levels, persistence, hysteresis.
+
+Pure: values in, states and transitions out; no database. :mod:`storage.evaluation` keeps one
+:class:`TrackState` per (rule, channel, tooth) and applies :func:`step` to every accepted
+record in the order the records were taken.
+
+Semantics (all levels in *baseline units*: how many robust spreads a value lies on the worse
+side of the baseline centre, see :class:`Baseline`):
+
+* **Baseline** — learned from the first ``baseline_records`` finite values of the track
+  (accepted records only: rejected ones never reach :func:`step`). Centre = median, spread =
+  1.4826·MAD (the standard deviation for Gaussian data) with a floor
+  ``max(spread_floor_fraction·|centre|, spread_floor_abs)`` so that a perfectly steady
+  baseline (MAD = 0, e.g. noise-free simulations) does not turn every wiggle into an alarm.
+  No alarm can be raised while the baseline is being learned.
+* **Direction** — :data:`INDICATOR_DIRECTIONS`. For every indicator gearwatch computes a
+  LARGER value is worse: ``mci_depth`` (a deeper MCI well under a cracked or spalled tooth),
+  ``diff_energy`` and ``diff_kurtosis`` (energy and impulsiveness of the difference signal in
+  the tooth's sector) and the whole-record metrics (rms, peak, crest, kurtosis, FM0, FM4, NA4,
+  NB4, M6A, M8A, ER all grow with damage). A ``lower_is_worse`` direction is supported for
+  indicators that fall with damage.
+* **Persistence** — an alarm opens when ``persistence`` (K) consecutive records score above
+  ``warning_level`` (state ``warning``) or above ``alarm_level`` (state ``alarm``); an open
+  warning escalates to ``alarm`` after K consecutive records above ``alarm_level``. One record
+  below a level resets its counter. ``raised_at`` is the time of the K-th record.
+* **Hysteresis** — an open alarm clears only after K consecutive records score below
+  ``clear_level`` (< ``warning_level``); values between the two levels keep it open.
+* **Acknowledgement** — an operator acknowledges an open alarm (state ``acknowledged``; the
+  severity reached is kept). An acknowledged *warning* that later escalates to *alarm* becomes
+  ``alarm`` again and must be acknowledged again; an acknowledged alarm stays acknowledged until
+  it clears. After clearing, a new excursion opens a new alarm.
+* A non-finite value (NaN, ±inf) is ignored: it changes no counter.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
+
+import numpy as np
+
+Direction = Literal["higher_is_worse", "lower_is_worse"]
+Level = Literal["normal", "warning", "alarm"]
+TransitionKind = Literal["warning", "alarm", "cleared"]
+
+MAD_TO_SIGMA = 1.4826
+"""1.4826·MAD estimates the standard deviation of Gaussian data (1/Φ⁻¹(3/4))."""
+
+INDICATOR_DIRECTIONS: dict[str, Direction] = {
+    # per tooth
+    "mci_depth": "higher_is_worse",
+    "diff_energy": "higher_is_worse",
+    "diff_kurtosis": "higher_is_worse",
+    # whole record
+    "rms": "higher_is_worse",
+    "peak": "higher_is_worse",
+    "crest": "higher_is_worse",
+    "kurtosis": "higher_is_worse",
+    "fm0": "higher_is_worse",
+    "fm4": "higher_is_worse",
+    "na4": "higher_is_worse",
+    "nb4": "higher_is_worse",
+    "m6a": "higher_is_worse",
+    "m8a": "higher_is_worse",
+    "er": "higher_is_worse",
+}
+"""Which way is worse for each indicator gearwatch computes."""
+
+
+def indicator_direction(indicator: str) -> Direction:
+    """The direction of ``indicator`` (``ValueError`` for an unknown indicator).
+
+    >>> indicator_direction("mci_depth")
+    'higher_is_worse'
+    """
+    try:
+        return INDICATOR_DIRECTIONS[indicator]
+    except KeyError:
+        known = ", ".join(INDICATOR_DIRECTIONS)
+        raise ValueError(f"unknown indicator {indicator!r} (known: {known})") from None
+
+
+@dataclass(frozen=True)
+class RuleSettings:
+    """Settings of one alarm rule (levels in baseline units, see the module docstring).
+
+    >>> RuleSettings("mci_depth", baseline_records=5, persistence=2).direction
+    'higher_is_worse'
+    """
+
+    indicator: str
+    baseline_records: int = 10
+    warning_level: float = 4.0
+    alarm_level: float = 8.0
+    clear_level: float = 2.0
+    persistence: int = 3
+    spread_floor_fraction: float = 0.05
+    spread_floor_abs: float = 1e-9
+    direction: Direction = field(default="higher_is_worse")
+
+    def __post_init__(self) -> None:
+        if self.indicator in INDICATOR_DIRECTIONS and self.direction != (
+            expected := INDICATOR_DIRECTIONS[self.indicator]
+        ):
+            object.__setattr__(self, "direction", expected)
+        if self.baseline_records < 1:
+            raise ValueError(f"baseline_records must be >= 1, got {self.baseline_records}")
+        if self.persistence < 1:
+            raise ValueError(f"persistence must be >= 1, got {self.persistence}")
+        if not (self.clear_level < self.warning_level <= self.alarm_level):
+            raise ValueError(
+                "levels must satisfy clear_level < warning_level <= alarm_level, got "
+                f"{self.clear_level}, {self.warning_level}, {self.alarm_level}"
+            )
+        if self.spread_floor_fraction < 0 or self.spread_floor_abs <= 0:
+            raise ValueError("spread floors must be >= 0 (fraction) and > 0 (absolute)")
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """Robust centre and spread of the first records of a track.
+
+    >>> b = learn_baseline([1.0, 1.1, 0.9, 1.0, 1.2])
+    >>> round(b.centre, 3), round(b.spread, 4)
+    (1.0, 0.1483)
+    >>> round(b.score(1.5), 2)
+    3.37
+    """
+
+    centre: float
+    spread: float
+    count: int
+    direction: Direction = "higher_is_worse"
+
+    def score(self, value: float) -> float:
+        """``value`` in baseline units, positive on the worse side."""
+        signed = value - self.centre if self.direction == "higher_is_worse" else self.centre - value
+        return signed / self.spread
+
+
+def learn_baseline(
+    values: Iterable[float],
+    *,
+    spread_floor_fraction: float = 0.05,
+    spread_floor_abs: float = 1e-9,
+    direction: Direction = "higher_is_worse",
+) -> Baseline:
+    """Median and floored 1.4826·MAD of the finite ``values``.
+
+    The floor is ``max(spread_floor_fraction·|median|, spread_floor_abs)``.
+
+    >>> learn_baseline([2.0, 2.0, 2.0]).spread  # MAD = 0: the floor, 5 % of the centre
+    0.1
+    """
+    array = np.asarray([v for v in values if math.isfinite(v)], dtype=np.float64)
+    if array.size == 0:
+        raise ValueError("a baseline needs at least one finite value")
+    centre = float(np.median(array))
+    mad = float(np.median(np.abs(array - centre)))
+    floor = max(spread_floor_fraction * abs(centre), spread_floor_abs)
+    return Baseline(centre, max(MAD_TO_SIGMA * mad, floor), int(array.size), direction)
+
+
+@dataclass(frozen=True)
+class TrackState:
+    """Everything :func:`step` needs to remember about one track between records."""
+
+    baseline_values: tuple[float, ...] = ()
+    """Values collected while the baseline is being learned."""
+    baseline: Baseline | None = None
+    level: Level = "normal"
+    """Severity of the open alarm, ``normal`` when none is open."""
+    acknowledged: bool = False
+    above_warning: int = 0
+    """Consecutive records above the warning level."""
+    above_alarm: int = 0
+    below_clear: int = 0
+
+    @property
+    def alarm_state(self) -> str | None:
+        """The state an alarm row shows (``None`` when no alarm is open)."""
+        if self.level == "normal":
+            return None
+        return "acknowledged" if self.acknowledged else self.level
+
+    def to_dict(self) -> dict[str, Any]:
+        baseline = None
+        if self.baseline is not None:
+            baseline = {
+                "centre": self.baseline.centre,
+                "spread": self.baseline.spread,
+                "count": self.baseline.count,
+                "direction": self.baseline.direction,
+            }
+        return {
+            "baseline_values": list(self.baseline_values),
+            "baseline": baseline,
+            "level": self.level,
+            "acknowledged": self.acknowledged,
+            "above_warning": self.above_warning,
+            "above_alarm": self.above_alarm,
+            "below_clear": self.below_clear,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrackState:
+        baseline = data.get("baseline")
+        return cls(
+            baseline_values=tuple(float(v) for v in data.get("baseline_values", ())),
+            baseline=Baseline(**baseline) if baseline else None,
+            level=data.get("level", "normal"),
+            acknowledged=bool(data.get("acknowledged", False)),
+            above_warning=int(data.get("above_warning", 0)),
+            above_alarm=int(data.get("above_alarm", 0)),
+            below_clear=int(data.get("below_clear", 0)),
+        )
+
+
+@dataclass(frozen=True)
+class Transition:
+    """A change of the track's alarm: ``opened`` is True when a new alarm starts here."""
+
+    kind: TransitionKind
+    opened: bool
+    value: float
+    score: float
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    state: TrackState
+    score: float | None
+    """The value in baseline units (``None`` while learning or for a non-finite value)."""
+    transitions: tuple[Transition, ...] = ()
+
+
+def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
+    """Feed one accepted record's value to a track.
+
+    >>> rule = RuleSettings("mci_depth", baseline_records=3, persistence=2)
+    >>> state = TrackState()
+    >>> for v in [1.0, 1.0, 1.0, 2.0, 2.0]:
+    ...     result = step(state, v, rule)
+    ...     state = result.state
+    >>> state.level, [t.kind for t in result.transitions]
+    ('alarm', ['alarm'])
+    """
+    if not math.isfinite(value):
+        return Evaluation(state, None)
+    if state.baseline is None:
+        collected = (*state.baseline_values, float(value))
+        if len(collected) < rule.baseline_records:
+            return Evaluation(replace(state, baseline_values=collected), None)
+        baseline = learn_baseline(
+            collected,
+            spread_floor_fraction=rule.spread_floor_fraction,
+            spread_floor_abs=rule.spread_floor_abs,
+            direction=rule.direction,
+        )
+        return Evaluation(replace(state, baseline_values=collected, baseline=baseline), None)
+
+    score = state.baseline.score(value)
+    above_alarm = state.above_alarm + 1 if score > rule.alarm_level else 0
+    above_warning = state.above_warning + 1 if score > rule.warning_level else 0
+    below_clear = state.below_clear + 1 if score < rule.clear_level else 0
+    level, acknowledged = state.level, state.acknowledged
+    transitions: list[Transition] = []
+    k = rule.persistence
+    if level == "normal":
+        if above_alarm >= k:
+            level = "alarm"
+            transitions.append(Transition("alarm", True, value, score))
+        elif above_warning >= k:
+            level = "warning"
+            transitions.append(Transition("warning", True, value, score))
+    elif below_clear >= k:
+        level, acknowledged = "normal", False
+        transitions.append(Transition("cleared", False, value, score))
+    elif level == "warning" and above_alarm >= k:
+        # Escalation: an acknowledged warning needs a new acknowledgement as an alarm.
+        level, acknowledged = "alarm", False
+        transitions.append(Transition("alarm", False, value, score))
+    new_state = replace(
+        state,
+        level=level,
+        acknowledged=acknowledged,
+        above_warning=above_warning,
+        above_alarm=above_alarm,
+        below_clear=below_clear,
+    )
+    return Evaluation(new_state, score, tuple(transitions))
+
+
+def acknowledge(state: TrackState) -> TrackState:
+    """The state after an operator acknowledged the open alarm (``ValueError`` if none is open
+    or it is already acknowledged)."""
+    if state.level == "normal":
+        raise ValueError("no open alarm to acknowledge")
+    if state.acknowledged:
+        raise ValueError("the alarm is already acknowledged")
+    return replace(state, acknowledged=True)
+
+
+def run(
+    values: Sequence[float], rule: RuleSettings, acknowledge_after: Iterable[int] = ()
+) -> tuple[list[str | None], list[list[Transition]]]:
+    """Feed a whole sequence; acknowledge right after the records whose indices are given.
+
+    Returns the alarm state after every record (``None`` = no open alarm) and its transitions.
+    Meant for tests, notebooks and explaining a rule.
+
+    >>> states, _ = run([1, 1, 1, 9, 9, 9, 1, 1], RuleSettings("kurtosis", 3, persistence=2),
+    ...                 acknowledge_after=[4])
+    >>> states
+    [None, None, None, None, 'acknowledged', 'acknowledged', 'acknowledged', None]
+    """
+    acks = set(acknowledge_after)
+    state = TrackState()
+    states: list[str | None] = []
+    transitions: list[list[Transition]] = []
+    for index, value in enumerate(values):
+        result = step(state, float(value), rule)
+        state = result.state
+        if index in acks:
+            state = acknowledge(state)
+        states.append(state.alarm_state)
+        transitions.append(list(result.transitions))
+    return states, transitions
