@@ -31,6 +31,7 @@ A format that cannot do something overrides the flag or the test (with a reason)
 
 from __future__ import annotations
 
+import mmap
 import tracemalloc
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -64,6 +65,16 @@ def known_signals(
     shaft_phase = (25.0 * time_s) % 1.0
     signals[TACH_CHANNEL] = np.where(shaft_phase < 0.1, 5.0, 0.0)
     return signals
+
+
+def is_memory_mapped(samples: np.ndarray) -> bool:
+    """True when ``samples`` is a view of a memory-mapped file (no copy in memory)."""
+    owner: object = samples
+    while owner is not None:
+        if isinstance(owner, np.memmap | mmap.mmap):
+            return True
+        owner = getattr(owner, "base", None)
+    return False
 
 
 def make_campaign(

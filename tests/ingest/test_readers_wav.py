@@ -10,7 +10,7 @@ import scipy.io.wavfile
 
 from gearwatch.errors import RecordFormatError
 from ingest.sources import read_record
-from tests.ingest.roundtrip import RoundTripBase, make_campaign
+from tests.ingest.roundtrip import RoundTripBase, is_memory_mapped, make_campaign
 
 
 class TestWavFloat32RoundTrip(RoundTripBase):
@@ -31,7 +31,7 @@ class TestWavFloat32RoundTrip(RoundTripBase):
         record = read_record(path, make_campaign(tmp_path, tuple(written), sample_rate_hz=None))
         acc1 = record.channels["acc1"]
         assert acc1.dtype == np.float32
-        assert isinstance(acc1.base, np.memmap) or isinstance(acc1, np.memmap)
+        assert is_memory_mapped(acc1)
         assert record.metadata["dtype"] == "float32"
 
 
