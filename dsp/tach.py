@@ -1,0 +1,525 @@
+"""Tachometer processing: edge times, pulse repair, speed profile and record acceptance.
+
+A tachometer gives one pulse per mark on a shaft (``pulses_per_rev`` marks, assumed equally
+spaced in angle). This module turns a tach waveform (TTL or noisy analogue) into sub-sample edge
+times, repairs an isolated missing or extra pulse, and decides whether a record is usable for
+synchronous averaging: enough whole revolutions, speed inside a range, speed steady enough.
+
+Everything here is pure: arrays in, arrays and frozen dataclasses out. A refusal raises
+:class:`TachometerError`, whose ``str()`` is a one-line reason meant for an operator.
+
+Examples
+--------
+>>> import numpy as np
+>>> from dsp.tach import analyze_tachometer
+>>> pulses = np.arange(41) * 0.06          # 1000 rpm, one pulse per revolution
+>>> tach = analyze_tachometer(pulses, pulses_per_rev=1)
+>>> round(tach.mean_rpm, 6), tach.whole_revolutions
+(1000.0, 40)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numba
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.ndimage import median_filter
+
+__all__ = [
+    "PulseRepair",
+    "TachAnalysis",
+    "TachometerError",
+    "analyze_tachometer",
+    "pulse_times_from_waveform",
+    "repair_pulse_times",
+    "waveform_levels",
+]
+
+FloatArray = NDArray[np.float64]
+
+LOCAL_PERIOD_WINDOW = 9
+"""Intervals in the running median that gives the local pulse period (robust to 2 bad intervals)."""
+
+MIN_FIT_SAMPLES = 3
+"""An edge with at least this many samples inside the hysteresis band is timed by a straight-line
+least-squares fit through them (averages noise); a faster edge by linear interpolation between the
+two samples that bracket the threshold (exact for a linear ramp)."""
+
+
+class TachometerError(ValueError):
+    """The tachometer signal cannot support synchronous averaging; ``str()`` is the reason."""
+
+
+@dataclass(frozen=True)
+class PulseRepair:
+    """One repair made to a pulse train.
+
+    Attributes
+    ----------
+    kind : {"missing", "extra"}
+        ``"missing"``: a pulse was inserted in an interval ≈ 2× the local period.
+        ``"extra"``: a pulse splitting one period into two short intervals was removed.
+    index : int
+        Position in the *input* sequence: for ``"extra"`` the index of the removed pulse, for
+        ``"missing"`` the index of the input pulse before which the new pulse was inserted.
+    time_s : float
+        Time of the removed or inserted pulse (s).
+    """
+
+    kind: Literal["missing", "extra"]
+    index: int
+    time_s: float
+
+
+@dataclass(frozen=True)
+class TachAnalysis:
+    """Repaired pulse train of an accepted record and its speed profile.
+
+    Attributes
+    ----------
+    pulse_times_s : ndarray
+        Repaired pulse times (s).
+    pulses_per_rev : int
+        Pulses per revolution of the tach shaft.
+    repairs : tuple of PulseRepair
+        Every repair made, in time order.
+    rev_times_s : ndarray
+        Time of every ``pulses_per_rev``-th pulse, starting at the first (reference) pulse;
+        ``whole_revolutions + 1`` values.
+    rev_speed_rpm : ndarray
+        Speed of the tach shaft over each whole revolution (rpm), ``whole_revolutions`` values.
+    mean_rpm, min_rpm, max_rpm : float
+        Mean, minimum and maximum of ``rev_speed_rpm``.
+    speed_variation : float
+        ``(max_rpm - min_rpm) / mean_rpm``.
+    whole_revolutions : int
+        Whole revolutions of the tach shaft between the first and the last revolution mark.
+    """
+
+    pulse_times_s: FloatArray
+    pulses_per_rev: int
+    repairs: tuple[PulseRepair, ...]
+    rev_times_s: FloatArray
+    rev_speed_rpm: FloatArray
+    mean_rpm: float
+    min_rpm: float
+    max_rpm: float
+    speed_variation: float
+    whole_revolutions: int
+
+
+# --------------------------------------------------------------------------- edge detection
+
+
+def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
+    """Robust low and high state levels of a two-level waveform, and its noise RMS.
+
+    The waveform is split at the midpoint of its 0.1 % and 99.9 % percentiles (so a few spikes
+    do not move it); each level is the median of the samples on its side. The noise RMS is
+    estimated from the median absolute first difference (edges are rare, so they do not bias it).
+
+    Parameters
+    ----------
+    signal : array_like
+        1-D tachometer waveform.
+
+    Returns
+    -------
+    low_level, high_level, noise_rms : float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ttl = np.tile([0.0] * 30 + [5.0] * 10, 20)
+    >>> waveform_levels(ttl)
+    (0.0, 5.0, 0.0)
+    """
+    x = np.asarray(signal, dtype=np.float64)
+    lo_extreme, hi_extreme = np.percentile(x, [0.1, 99.9])
+    mid = 0.5 * (lo_extreme + hi_extreme)
+    below = x[x < mid]
+    above = x[x >= mid]
+    low_level = float(np.median(below)) if below.size else float(mid)
+    high_level = float(np.median(above)) if above.size else float(mid)
+    # MAD of first differences: for white noise diff has std sqrt(2)·sigma.
+    noise_rms = float(1.4826 * np.median(np.abs(np.diff(x))) / np.sqrt(2.0)) if x.size > 1 else 0.0
+    return low_level, high_level, noise_rms
+
+
+@numba.njit(cache=True)
+def _edge_crossings(
+    x: FloatArray, start: NDArray[np.int64], stop: NDArray[np.int64], threshold: float
+) -> FloatArray:
+    """Fractional sample index where each edge crosses ``threshold``.
+
+    ``start[i]`` is the last sample below the lower hysteresis level, ``stop[i]`` the first one
+    above the upper level; samples strictly between them lie inside the hysteresis band.
+    """
+    out = np.empty(start.size)
+    for e in range(start.size):
+        a = start[e]
+        b = stop[e]
+        interior = b - a - 1
+        if interior >= MIN_FIT_SAMPLES:
+            # Least-squares line through the in-band samples, then solve line(t) = threshold.
+            m = float(interior)
+            st = 0.0
+            sx = 0.0
+            stt = 0.0
+            stx = 0.0
+            for j in range(a + 1, b):
+                tj = float(j - a)
+                st += tj
+                sx += x[j]
+                stt += tj * tj
+                stx += tj * x[j]
+            denom = m * stt - st * st
+            slope = (m * stx - st * sx) / denom
+            if slope > 0.0:
+                intercept = (sx - slope * st) / m
+                out[e] = a + (threshold - intercept) / slope
+                continue
+        # Fast edge (or a flat fit): last upward crossing of the threshold inside [a, b].
+        j = b - 1
+        while j > a and x[j] > threshold:
+            j -= 1
+        x0 = x[j]
+        x1 = x[j + 1]
+        frac = (threshold - x0) / (x1 - x0) if x1 != x0 else 0.5
+        out[e] = j + min(max(frac, 0.0), 1.0)
+    return out
+
+
+def pulse_times_from_waveform(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    *,
+    threshold: float | None = None,
+    hysteresis: float | None = None,
+    edge: Literal["rising", "falling"] = "rising",
+) -> FloatArray:
+    """Edge times of a tachometer waveform, with hysteresis and sub-sample interpolation.
+
+    A Schmitt trigger with levels ``threshold ± hysteresis/2`` finds each edge: an edge is
+    counted when the waveform goes from below the lower level to above the upper level (for
+    ``edge="falling"`` the other way), so noise smaller than the band cannot make extra edges.
+    The edge *time* is where the waveform crosses ``threshold`` itself: a least-squares line
+    through the samples inside the band when there are at least 3 of them (a slow, noisy edge),
+    otherwise linear interpolation between the two samples bracketing the threshold (a fast TTL
+    edge; exact for a linear ramp). An edge already in progress at the first sample is not
+    reported, since its start is unknown.
+
+    Parameters
+    ----------
+    signal : array_like
+        1-D tachometer waveform (any units).
+    sample_rate_hz : float
+        Sampling rate of ``signal``.
+    threshold : float, optional
+        Decision level. Default: midway between the robust low and high levels
+        (:func:`waveform_levels`).
+    hysteresis : float, optional
+        Full width of the Schmitt band. Default: 8 × the estimated noise RMS, at least 20 % and at
+        most 60 % of the level difference.
+    edge : {"rising", "falling"}
+        Which edge marks a pulse.
+
+    Returns
+    -------
+    ndarray
+        Edge times in seconds from the first sample, increasing. Empty if the waveform has no
+        edge (for example a constant signal).
+
+    Raises
+    ------
+    TachometerError
+        Non-finite samples, a 2-D signal, or a bad parameter.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> n = np.arange(1000)
+    >>> ttl = 5.0 * np.clip(((n % 100) - 40.75) / 2 + 0.5, 0, 1)  # 2.5 V at sample 40.75 + 100 k
+    >>> pulse_times_from_waveform(ttl, sample_rate_hz=1000.0)[:3]
+    array([0.04075, 0.14075, 0.24075])
+    """
+    x = np.asarray(signal, dtype=np.float64)
+    if x.ndim != 1:
+        raise TachometerError(f"tachometer waveform must be 1-D, got shape {x.shape}")
+    if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
+        raise TachometerError(f"sample rate must be positive, got {sample_rate_hz}")
+    if edge not in ("rising", "falling"):
+        raise TachometerError(f"edge must be 'rising' or 'falling', got {edge!r}")
+    if x.size < 2:
+        return np.empty(0)
+    if not np.all(np.isfinite(x)):
+        raise TachometerError("tachometer waveform contains NaN or infinite samples")
+    if hysteresis is not None and (not np.isfinite(hysteresis) or hysteresis < 0):
+        raise TachometerError(f"hysteresis must be >= 0, got {hysteresis}")
+
+    if threshold is None or hysteresis is None:
+        low_level, high_level, noise_rms = waveform_levels(x)
+        swing = high_level - low_level
+        if threshold is None:
+            threshold = 0.5 * (low_level + high_level)
+        if hysteresis is None:
+            hysteresis = min(max(8.0 * noise_rms, 0.2 * swing), 0.6 * swing)
+        if swing <= 0:
+            return np.empty(0)
+    if edge == "falling":
+        # A falling edge of x is a rising edge of -x.
+        x = -x
+        threshold = -threshold
+
+    upper = threshold + 0.5 * hysteresis
+    lower = threshold - 0.5 * hysteresis
+    state = np.zeros(x.size, dtype=np.int8)
+    state[x > upper] = 1
+    state[x < lower] = -1
+    decided = np.flatnonzero(state)
+    decided_state = state[decided]
+    # The trigger flips low -> high between consecutive decided samples of opposite state.
+    flips = np.flatnonzero((decided_state[:-1] == -1) & (decided_state[1:] == 1))
+    start = decided[flips].astype(np.int64)
+    stop = decided[flips + 1].astype(np.int64)
+    crossings = _edge_crossings(x, start, stop, float(threshold))
+    return np.asarray(crossings / float(sample_rate_hz), dtype=np.float64)
+
+
+# --------------------------------------------------------------------------- pulse repair
+
+
+def _local_period(intervals: FloatArray) -> FloatArray:
+    """Running median of the pulse intervals (robust to an isolated missing or extra pulse)."""
+    if intervals.size < 3:
+        return np.full(intervals.shape, float(np.median(intervals)))
+    window = min(LOCAL_PERIOD_WINDOW, intervals.size)
+    return np.asarray(median_filter(intervals, size=window, mode="nearest"), dtype=np.float64)
+
+
+def _validate_pulse_times(pulse_times_s: ArrayLike) -> FloatArray:
+    t = np.asarray(pulse_times_s, dtype=np.float64)
+    if t.ndim != 1:
+        raise TachometerError(f"pulse times must be 1-D, got shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise TachometerError("pulse times contain NaN or infinite values")
+    if t.size > 1 and np.any(np.diff(t) <= 0):
+        bad = int(np.flatnonzero(np.diff(t) <= 0)[0])
+        raise TachometerError(
+            f"pulse times are not strictly increasing (pulse {bad + 1} at {t[bad + 1]:.6g} s)"
+        )
+    return t
+
+
+def repair_pulse_times(
+    pulse_times_s: ArrayLike, *, tolerance: float = 0.3
+) -> tuple[FloatArray, tuple[PulseRepair, ...]]:
+    """Repair isolated missing and extra pulses in a pulse train.
+
+    The local period ``P`` at each interval is the running median of 9 neighbouring intervals.
+    With ``r = interval / P``:
+
+    - an interval with ``|r/2 - 1| <= tolerance`` (≈ 2 periods) lost one pulse: a pulse is
+      inserted at its midpoint;
+    - a short interval (``r < 1 - tolerance``) that together with a neighbour makes one period
+      (``|r_i + r_neighbour - 1| <= tolerance``) holds a spurious pulse: the pulse they share is
+      removed (the pairing whose sum is closer to 1 wins; at the record ends, an unpaired short
+      first or last interval loses its outer pulse).
+
+    Anything else (for example a gap of 3 periods) is left as it is; :func:`analyze_tachometer`
+    refuses such a record. Pulses are assumed equally spaced in shaft angle.
+
+    Parameters
+    ----------
+    pulse_times_s : array_like
+        Increasing pulse times (s).
+    tolerance : float
+        Relative tolerance on the period, in (0, 0.5).
+
+    Returns
+    -------
+    repaired : ndarray
+        Repaired pulse times.
+    repairs : tuple of PulseRepair
+        What was done, in time order.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.delete(np.arange(30) * 0.1, 12)          # pulse 12 lost
+    >>> repaired, repairs = repair_pulse_times(t)
+    >>> repaired.size, repairs[0].kind, round(repairs[0].time_s, 9)
+    (30, 'missing', 1.2)
+    """
+    if not 0.0 < tolerance < 0.5:
+        raise TachometerError(f"repair tolerance must be in (0, 0.5), got {tolerance}")
+    t = _validate_pulse_times(pulse_times_s)
+    if t.size < 4:
+        return t.copy(), ()
+    intervals = np.diff(t)
+    ratio = intervals / _local_period(intervals)
+    n_int = intervals.size
+
+    remove: set[int] = set()
+    insert: list[tuple[int, float]] = []
+    consumed = np.zeros(n_int, dtype=bool)
+    for i in np.flatnonzero(np.abs(ratio - 1.0) > tolerance):
+        if consumed[i]:
+            continue
+        r = ratio[i]
+        if abs(r / 2.0 - 1.0) <= tolerance:
+            insert.append((int(i) + 1, 0.5 * (t[i] + t[i + 1])))
+            consumed[i] = True
+            continue
+        if r >= 1.0 - tolerance:
+            continue  # long but not ≈ 2 periods: unexplained, left for the caller's check
+        candidates: list[tuple[float, int, int]] = []  # (|sum - 1|, neighbour, shared pulse)
+        if i > 0 and not consumed[i - 1]:
+            candidates.append((abs(r + ratio[i - 1] - 1.0), int(i) - 1, int(i)))
+        if i + 1 < n_int and not consumed[i + 1]:
+            candidates.append((abs(r + ratio[i + 1] - 1.0), int(i) + 1, int(i) + 1))
+        candidates = [c for c in candidates if c[0] <= tolerance]
+        if candidates:
+            _, neighbour, pulse = min(candidates)
+            remove.add(pulse)
+            consumed[i] = consumed[neighbour] = True
+        elif i == 0:
+            remove.add(0)
+            consumed[i] = True
+        elif i == n_int - 1:
+            remove.add(n_int)
+            consumed[i] = True
+
+    repairs = [PulseRepair("extra", k, float(t[k])) for k in remove]
+    repairs += [PulseRepair("missing", k, float(time_s)) for k, time_s in insert]
+    repairs.sort(key=lambda rep: rep.time_s)
+    keep = np.ones(t.size, dtype=bool)
+    keep[list(remove)] = False
+    repaired = np.concatenate([t[keep], np.array([time_s for _, time_s in insert])])
+    repaired.sort()
+    return repaired, tuple(repairs)
+
+
+# --------------------------------------------------------------------------- analysis
+
+
+def analyze_tachometer(
+    pulse_times_s: ArrayLike,
+    pulses_per_rev: int,
+    *,
+    max_speed_variation: float = 0.10,
+    min_revolutions: int = 20,
+    min_speed_rpm: float = 1.0,
+    max_speed_rpm: float = 100_000.0,
+    repair_tolerance: float = 0.3,
+) -> TachAnalysis:
+    """Repair a pulse train, measure the tach-shaft speed and accept or refuse the record.
+
+    Steps: :func:`repair_pulse_times`; refuse any interval still off the local period by more
+    than ``repair_tolerance`` (a gap or burst that one missing/extra pulse cannot explain); take
+    every ``pulses_per_rev``-th pulse from the first as the revolution marks; refuse if fewer
+    than ``min_revolutions`` whole revolutions, if any per-revolution speed is outside
+    ``[min_speed_rpm, max_speed_rpm]``, or if ``(max - min) / mean`` of the per-revolution speed
+    exceeds ``max_speed_variation``. The boundaries themselves pass.
+
+    Parameters
+    ----------
+    pulse_times_s : array_like
+        Increasing pulse times (s), e.g. from :func:`pulse_times_from_waveform`.
+    pulses_per_rev : int
+        Pulses per revolution of the tach shaft.
+    max_speed_variation : float
+        Largest accepted ``(max - min) / mean`` of the per-revolution speed.
+    min_revolutions : int
+        Fewest accepted whole revolutions of the tach shaft.
+    min_speed_rpm, max_speed_rpm : float
+        Accepted speed range of the tach shaft (every revolution must be inside).
+    repair_tolerance : float
+        Relative period tolerance for repairs and for the regularity check.
+
+    Returns
+    -------
+    TachAnalysis
+
+    Raises
+    ------
+    TachometerError
+        The record is refused; ``str()`` says why in one line.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> pulses = np.arange(10) * 0.06
+    >>> analyze_tachometer(pulses, 1)
+    Traceback (most recent call last):
+    ...
+    dsp.tach.TachometerError: only 9 whole revolutions of the tach shaft (10 pulses at 1 per revolution); at least 20 are required
+    """
+    if isinstance(pulses_per_rev, bool) or int(pulses_per_rev) != pulses_per_rev:
+        raise TachometerError(f"pulses per revolution must be an integer, got {pulses_per_rev!r}")
+    pulses_per_rev = int(pulses_per_rev)
+    if pulses_per_rev < 1:
+        raise TachometerError(f"pulses per revolution must be >= 1, got {pulses_per_rev}")
+    if min_revolutions < 1:
+        raise TachometerError(f"min_revolutions must be >= 1, got {min_revolutions}")
+    if not max_speed_variation >= 0:
+        raise TachometerError(f"max_speed_variation must be >= 0, got {max_speed_variation}")
+    if not 0 <= min_speed_rpm < max_speed_rpm:
+        raise TachometerError(
+            f"speed range must satisfy 0 <= min < max, got [{min_speed_rpm}, {max_speed_rpm}] rpm"
+        )
+
+    t = _validate_pulse_times(pulse_times_s)
+    if t.size == 0:
+        raise TachometerError("no tachometer pulses found")
+    if t.size < 3:
+        raise TachometerError(f"too few tachometer pulses ({t.size}) to measure a speed")
+
+    repaired, repairs = repair_pulse_times(t, tolerance=repair_tolerance)
+    intervals = np.diff(repaired)
+    deviation = intervals / _local_period(intervals) - 1.0
+    irregular = np.flatnonzero(np.abs(deviation) > repair_tolerance)
+    if irregular.size:
+        i = int(irregular[0])
+        raise TachometerError(
+            f"irregular tachometer: {irregular.size} pulse interval(s) not explained by one missing "
+            f"or extra pulse, first at {repaired[i]:.6g} s ({1 + deviation[i]:.2f}× the local period)"
+        )
+
+    rev_times = repaired[::pulses_per_rev]
+    whole = rev_times.size - 1
+    if whole < min_revolutions:
+        raise TachometerError(
+            f"only {whole} whole revolutions of the tach shaft ({repaired.size} pulses at "
+            f"{pulses_per_rev} per revolution); at least {min_revolutions} are required"
+        )
+    rev_speed = 60.0 / np.diff(rev_times)
+    mean_rpm = float(np.mean(rev_speed))
+    min_rpm = float(np.min(rev_speed))
+    max_rpm = float(np.max(rev_speed))
+    if min_rpm < min_speed_rpm or max_rpm > max_speed_rpm:
+        raise TachometerError(
+            f"tach-shaft speed {min_rpm:.6g}-{max_rpm:.6g} rpm is outside the accepted range "
+            f"[{min_speed_rpm:g}, {max_speed_rpm:g}] rpm"
+        )
+    variation = (max_rpm - min_rpm) / mean_rpm
+    if variation > max_speed_variation:
+        raise TachometerError(
+            f"speed varies too much within the record: (max - min)/mean = {variation:.3f} "
+            f"({min_rpm:.6g}-{max_rpm:.6g} rpm) exceeds {max_speed_variation:g}"
+        )
+    return TachAnalysis(
+        pulse_times_s=repaired,
+        pulses_per_rev=pulses_per_rev,
+        repairs=repairs,
+        rev_times_s=rev_times,
+        rev_speed_rpm=rev_speed,
+        mean_rpm=mean_rpm,
+        min_rpm=min_rpm,
+        max_rpm=max_rpm,
+        speed_variation=float(variation),
+        whole_revolutions=int(whole),
+    )
