@@ -34,6 +34,7 @@ class TestHdf5RoundTrip(RoundTripBase):
 
 
 class TestHdf5ChunkedCompressedRoundTrip(TestHdf5RoundTrip):
+    decompressed_bytes_per_sample = 8
     suffix = ".hdf5"
     memory_mapped = False
     atol = 0.0

@@ -31,6 +31,7 @@ class TestNpzRoundTrip(RoundTripBase):
 
 
 class TestNpzCompressedRoundTrip(TestNpzRoundTrip):
+    decompressed_bytes_per_sample = 8
     memory_mapped = False
 
     def write(self, path: Path, channels: dict[str, np.ndarray], sample_rate_hz: float | None) -> None:
