@@ -1,0 +1,271 @@
+"""Per-tooth localisation on one pinion revolution.
+
+Angle convention (``/work/shared/docs/mci-notes.md`` §4): ``tooth1_pitch_angle_deg`` is the
+pinion angle after the tachometer reference edge at which pinion tooth 1 passes the pitch
+point; tooth ``k`` (1-based) passes it ``(k − 1)·360/Z1`` degrees later. Sample ``i`` of a
+revolution of ``N`` samples sits at ``360·i/N`` degrees. The *sector* of tooth ``k`` is its
+pitch angle ± half a pitch, half-open ``[p_k − 180/Z1, p_k + 180/Z1)`` so that every angle
+belongs to exactly one tooth. A transfer path delays a spall's well slightly *after* the pitch
+angle; the sector's half pitch (32 samples at 64 samples per mesh) absorbs that delay.
+
+Per-tooth indicators
+--------------------
+``mci_depth`` (:func:`per_tooth_mci_depth`)
+    ``median(MCI over the revolution) − mean(MCI over the sector)``, in nepers. The median is
+    the healthy level of a curve that is flat except for wells (a well covers ≈ W of the
+    revolution's Z1·W samples, so it cannot move the median); subtracting it removes the
+    curve's arbitrary offset, so depths are comparable across days, channels and gains. The
+    sector *mean* rather than its minimum: the median filter gives the well a flat bottom
+    about one pitch wide, which usually straddles two sectors, so the minimum ties between the
+    spalled tooth and a neighbour; the mean ranks first the sector holding most of the well,
+    i.e. its centre (notes §4), and averages noise. Measured on the campaign of
+    :mod:`dsp.mci` (robust MCI, noise 0.01, 100 cases): worst tooth right in 93 % of cases
+    with the minimum (every miss a tie with the next tooth), 100 % with the mean; the mean
+    was at least as good in all 24 cells of the table. A well exactly one sector wide and
+    centred on the pitch angle has depth equal to the well's depth. Deepest = worst tooth.
+``diff_energy``, ``diff_kurtosis`` (:func:`per_tooth_difference_stats`)
+    The classic evidence in the same sector of the difference signal: mean square relative to
+    the revolution's mean square (1 = an average tooth), and the kurtosis (4th standardised
+    moment about the sector's mean, 3 for Gaussian samples).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+def _checked_teeth(pinion_teeth: int) -> int:
+    teeth = int(pinion_teeth)
+    if teeth < 1:
+        raise ValueError(f"pinion_teeth must be positive, got {pinion_teeth}")
+    return teeth
+
+
+def tooth_pitch_angles_deg(pinion_teeth: int, tooth1_pitch_angle_deg: float) -> NDArray[np.float64]:
+    """Pitch-point angle of every pinion tooth, in degrees within ``[0, 360)``.
+
+    Parameters
+    ----------
+    pinion_teeth : int
+        Number of pinion teeth ``Z1``.
+    tooth1_pitch_angle_deg : float
+        Angle after the tach reference edge at which tooth 1 passes the pitch point.
+
+    Returns
+    -------
+    ndarray of float64, shape (Z1,)
+        Entry ``k − 1`` is tooth ``k``'s pitch angle.
+
+    Examples
+    --------
+    >>> tooth_pitch_angles_deg(4, 100.0)
+    array([100., 190., 280.,  10.])
+    """
+    teeth = _checked_teeth(pinion_teeth)
+    return np.mod(float(tooth1_pitch_angle_deg) + 360.0 * np.arange(teeth) / teeth, 360.0)
+
+
+def _tooth_index(
+    angle_deg: NDArray[np.float64], teeth: int, tooth1_pitch_angle_deg: float
+) -> NDArray[np.int64]:
+    # position within the revolution measured from the start of tooth 1's sector, in pitches
+    pitches = np.mod(angle_deg - float(tooth1_pitch_angle_deg) + 180.0 / teeth, 360.0) * (
+        teeth / 360.0
+    )
+    # np.mod can return 360.0 for tiny negative inputs: fold that back to tooth 1
+    return np.floor(pitches).astype(np.int64) % teeth
+
+
+def tooth_at_angle(angle_deg: float, pinion_teeth: int, tooth1_pitch_angle_deg: float) -> int:
+    """1-based pinion tooth whose sector (pitch angle ± half a pitch) holds ``angle_deg``.
+
+    Parameters
+    ----------
+    angle_deg : float
+        Pinion angle after the tach reference edge, degrees (any value; taken modulo 360).
+    pinion_teeth : int
+        Number of pinion teeth ``Z1``.
+    tooth1_pitch_angle_deg : float
+        Angle at which tooth 1 passes the pitch point.
+
+    Returns
+    -------
+    int
+        Tooth number in ``1 … Z1``.
+
+    Examples
+    --------
+    >>> tooth_at_angle(247.0, 20, 0.0)   # 247° / 18° per tooth ≈ 13.7 → tooth 15's sector
+    15
+    """
+    teeth = _checked_teeth(pinion_teeth)
+    index = _tooth_index(np.asarray(float(angle_deg)), teeth, tooth1_pitch_angle_deg)
+    return int(index) + 1
+
+
+def tooth_sector_masks(
+    samples_per_rev: int, pinion_teeth: int, tooth1_pitch_angle_deg: float
+) -> NDArray[np.bool_]:
+    """Boolean sector of every tooth over one revolution of ``samples_per_rev`` samples.
+
+    Parameters
+    ----------
+    samples_per_rev : int
+        Samples in one pinion revolution; sample ``i`` is at ``360·i/samples_per_rev`` degrees.
+    pinion_teeth : int
+        Number of pinion teeth ``Z1``.
+    tooth1_pitch_angle_deg : float
+        Angle at which tooth 1 passes the pitch point.
+
+    Returns
+    -------
+    ndarray of bool, shape (Z1, samples_per_rev)
+        Row ``k − 1`` is tooth ``k``'s sector; every sample is in exactly one row.
+
+    Examples
+    --------
+    >>> tooth_sector_masks(8, 4, 0.0).astype(int)
+    array([[1, 0, 0, 0, 0, 0, 0, 1],
+           [0, 1, 1, 0, 0, 0, 0, 0],
+           [0, 0, 0, 1, 1, 0, 0, 0],
+           [0, 0, 0, 0, 0, 1, 1, 0]])
+    """
+    teeth = _checked_teeth(pinion_teeth)
+    samples = int(samples_per_rev)
+    if samples < teeth:
+        raise ValueError(f"samples_per_rev ({samples}) must be at least pinion_teeth ({teeth})")
+    angles = 360.0 * np.arange(samples) / samples
+    owner = _tooth_index(angles, teeth, tooth1_pitch_angle_deg)
+    masks: NDArray[np.bool_] = owner[np.newaxis, :] == np.arange(teeth)[:, np.newaxis]
+    return masks
+
+
+def per_tooth_mci_depth(
+    mci_filtered: ArrayLike,
+    pinion_teeth: int,
+    tooth1_pitch_angle_deg: float,
+    *,
+    axis: int = -1,
+) -> NDArray[np.float64]:
+    """MCI well depth per tooth: revolution median minus the sector's mean, in nepers.
+
+    Parameters
+    ----------
+    mci_filtered : array_like of float
+        Median-filtered MCI over one revolution (value ``i`` = window centred on sample ``i``,
+        see :mod:`dsp.mci`), along ``axis``; any leading/trailing batch axes.
+    pinion_teeth : int
+        Number of pinion teeth ``Z1``.
+    tooth1_pitch_angle_deg : float
+        Angle at which tooth 1 passes the pitch point.
+    axis : int
+        Axis of the revolution.
+
+    Returns
+    -------
+    ndarray of float64, shape (..., Z1)
+        Depth of tooth ``k`` at index ``k − 1`` (the revolution axis is replaced by a last
+        axis of teeth). Positive = below the healthy level; slightly negative for a sector
+        above the median.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> curve = np.zeros(80)
+    >>> curve[32:48] = -1.5                    # a well filling tooth 3's sector (144–216°)
+    >>> per_tooth_mci_depth(curve, 5, 36.0)
+    array([0. , 0. , 1.5, 0. , 0. ])
+    """
+    curves = np.moveaxis(np.asarray(mci_filtered, dtype=np.float64), axis, -1)
+    masks = tooth_sector_masks(curves.shape[-1], pinion_teeth, tooth1_pitch_angle_deg)
+    level = np.median(curves, axis=-1, keepdims=True)
+    sector_mean = curves @ (masks / masks.sum(axis=-1, keepdims=True)).T
+    depths: NDArray[np.float64] = level - sector_mean
+    return depths
+
+
+def per_tooth_difference_stats(
+    difference: ArrayLike,
+    pinion_teeth: int,
+    tooth1_pitch_angle_deg: float,
+    *,
+    axis: int = -1,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Energy and kurtosis of the difference signal in each tooth's sector.
+
+    Parameters
+    ----------
+    difference : array_like of float
+        Difference signal (average minus mesh harmonics and their sidebands) over one
+        revolution along ``axis``.
+    pinion_teeth : int
+        Number of pinion teeth ``Z1``.
+    tooth1_pitch_angle_deg : float
+        Angle at which tooth 1 passes the pitch point.
+    axis : int
+        Axis of the revolution.
+
+    Returns
+    -------
+    energy : ndarray of float64, shape (..., Z1)
+        Sector mean square over the revolution's mean square (1 = an average tooth; all ones
+        for an identically zero signal).
+    kurtosis : ndarray of float64, shape (..., Z1)
+        ``E[(x − x̄)⁴]/E[(x − x̄)²]²`` within the sector (Pearson, 3 for Gaussian samples);
+        0 for a constant sector, where it is undefined.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> d = np.tile([1.0, -1.0], 40)
+    >>> d[44] = 10.0                           # an impulse in tooth 3's sector
+    >>> energy, kurt = per_tooth_difference_stats(d, 5, 36.0)
+    >>> int(np.argmax(energy)) + 1, int(np.argmax(kurt)) + 1
+    (3, 3)
+    """
+    signals = np.moveaxis(np.asarray(difference, dtype=np.float64), axis, -1)
+    masks = tooth_sector_masks(signals.shape[-1], pinion_teeth, tooth1_pitch_angle_deg)
+    counts = masks.sum(axis=-1)
+    weights = masks / counts[:, np.newaxis]  # (Z1, N): averaging over each sector
+    sector_mean = signals @ weights.T
+    sector_mean_square = (signals**2) @ weights.T
+    overall_mean_square = np.mean(signals**2, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        energy = np.where(overall_mean_square > 0, sector_mean_square / overall_mean_square, 1.0)
+    # central moments per sector: deviations of every sample from its own sector's mean
+    own_mean = sector_mean @ masks.astype(np.float64)
+    deviation = signals - own_mean
+    second = (deviation**2) @ weights.T
+    fourth = (deviation**4) @ weights.T
+    # a sector whose spread is at rounding level is constant: kurtosis undefined → 0
+    constant = second <= 1e-28 * np.maximum(sector_mean_square, np.finfo(np.float64).tiny)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        kurtosis = np.where(constant, 0.0, fourth / np.where(constant, 1.0, second) ** 2)
+    return np.asarray(energy, dtype=np.float64), np.asarray(kurtosis, dtype=np.float64)
+
+
+def worst_tooth(depths: ArrayLike) -> int:
+    """1-based tooth with the deepest MCI well.
+
+    Parameters
+    ----------
+    depths : array_like of float, shape (Z1,)
+        Output of :func:`per_tooth_mci_depth` for one curve.
+
+    Returns
+    -------
+    int
+        Tooth number in ``1 … Z1`` (the first one on ties); NaN entries are ignored.
+
+    Examples
+    --------
+    >>> worst_tooth([0.1, 0.9, 0.3])
+    2
+    """
+    values = np.asarray(depths, dtype=np.float64)
+    if values.ndim != 1 or values.size == 0:
+        raise ValueError(f"depths must be a non-empty 1-D array, got shape {values.shape}")
+    if np.all(np.isnan(values)):
+        raise ValueError("every depth is NaN")
+    return int(np.nanargmax(values)) + 1
