@@ -116,12 +116,14 @@ def parse_manifest(
     _reject_unknown(ctx, "manifest", data, _TOP_LEVEL_KEYS, top_level=True)
 
     campaign_table = _table(ctx, data, "campaign", required=True)
+    _reject_unknown(ctx, "[campaign]", campaign_table, _CAMPAIGN_KEYS)
     campaign_id = _string(ctx, "[campaign]", campaign_table, "id", required=True, nonempty=True)
     description = _string(ctx, "[campaign]", campaign_table, "description") or ""
 
     rig = _parse_rig(ctx, _table(ctx, data, "rig", required=True))
 
     acquisition = _table(ctx, data, "acquisition", required=False)
+    _reject_unknown(ctx, "[acquisition]", acquisition, _ACQUISITION_KEYS)
     sample_rate_hz = _positive_number(ctx, "[acquisition]", acquisition, "sample_rate_hz")
 
     channels = _parse_channels(ctx, data.get("channels"))

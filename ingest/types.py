@@ -79,7 +79,9 @@ class RecordData:
     """One record as read from a file or assembled from CAN frames.
 
     ``channels`` maps a channel name to its samples (1-D float64 for a waveform;
-    for a ``pulse_times`` tachometer the pulse times in seconds). ``sample_rate_hz``
+    for a ``pulse_times`` tachometer the pulse times in seconds). File readers may return
+    float32 and READ-ONLY memory-mapped views (large records): convert one channel at a
+    time with ``np.asarray(x, dtype=np.float64)``, never modify in place. ``sample_rate_hz``
     is the waveform rate: the file's own when it carries one, else the manifest's.
     """
 
