@@ -454,9 +454,9 @@ def estimate_wdd(
        ± its standard deviation, over ``segment_samples``.
     3. :func:`prony` fit of that estimate with ``n_modes`` modes. Modes that do not decay
        (``r >= 1``) are not a transfer path and are left out of the frequency response.
-    4. The fitted frequency response ``H`` (closed form, see :func:`_periodised_frequency_response`)
-       is scaled to unit peak gain, and the residual's spectrum ``R`` is divided by it with
-       Tikhonov (Wiener-type) regularisation::
+    4. The fitted frequency response ``H`` (the modes' impulse response folded onto one
+       revolution, in closed form) is scaled to unit peak gain, and the residual's spectrum
+       ``R`` is divided by it with Tikhonov (Wiener-type) regularisation::
 
            W''(k) = R(k)·H*(k) / (|H(k)|² + λ),   λ = regularisation,  max|H| = 1.
 
@@ -465,6 +465,14 @@ def estimate_wdd(
        (5 for the default ``λ = 1e-2``, i.e. the band more than 20 dB below the resonance peak
        is attenuated). W'' is therefore band-limited to where the path transmits, and its scale
        is that of an excitation seen through a unit-peak-gain path.
+
+    Accuracy (measured on synthetic averages, see ``tests/dsp/test_wdd.py``): the peak of
+    ``|W''|`` falls on the spall's entry or exit edge, within a sample when the residual is
+    clean. The mode's damping is biased when the spall is wide compared with the mode's period:
+    random decrement segments that start inside the spall (between its two edges) are not free
+    decays. With a 7-sample spall and a mode at 0.2 cycle/sample, ζ = 0.10 is estimated as
+    0.07 and the frequency 3 % high; the W'' estimate is hardly affected (its correlation with
+    the best regularised W'' computable from the *true* path stays 0.97).
 
     Parameters
     ----------

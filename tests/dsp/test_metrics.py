@@ -345,3 +345,53 @@ def test_gear_metrics_batched() -> None:
     single = metrics.gear_metrics(*signals[:, 1], teeth=6)
     for name in METRIC_NAMES:
         assert result[name][1] == pytest.approx(single[name], rel=1e-13), name
+
+
+# ------------------------------------------------------------------ on a simulated campaign
+
+
+def test_spall_raises_the_difference_signal_metrics_on_a_synthetic_campaign() -> None:
+    """Healthy days then a growing spall on tooth 16 (dsp.synthetic's exact averages + noise).
+
+    The NA4/NB4 baselines are the running means of the per-record variances, as the pipeline
+    keeps them. FM4/M6A/NA4 stay near their Gaussian values while healthy and rise with the spall.
+    """
+    from dsp import tsa
+    from dsp.synthetic import synthetic_gear_record
+
+    n_rev, teeth = 1280, 20
+    rng = np.random.default_rng(13)
+    healthy = synthetic_gear_record(duration_s=0.2, seed=1).true_pinion_average(n_rev)
+    residual_variances: list[float] = []
+    envelope_variances: list[float] = []
+    results = []
+    for depth in (None, None, None, 0.2):
+        average = healthy
+        if depth is not None:
+            record = synthetic_gear_record(duration_s=0.2, spall_tooth=16, spall_depth=depth, seed=1)
+            average = record.true_pinion_average(n_rev)
+        average = average + 0.01 * rng.standard_normal(n_rev)
+        residual = tsa.residual_signal(average, teeth)
+        residual_variances.append(float(np.var(residual)))
+        envelope_variances.append(float(metrics.envelope_variance(average, teeth)))
+        results.append(
+            metrics.gear_metrics(
+                average,
+                residual,
+                tsa.difference_signal(average, teeth),
+                tsa.regular_signal(average, teeth),
+                teeth,
+                na4_baseline_variance=float(np.mean(residual_variances)),
+                nb4_baseline_variance=float(np.mean(envelope_variances)),
+            )
+        )
+    *healthy_days, spalled = results
+    for day in healthy_days:
+        assert 2.0 < day["fm4"] < 4.5 and 2.0 < day["na4"] < 4.5
+    assert spalled["fm4"] > 10.0
+    assert spalled["na4"] > 50.0
+    assert spalled["m6a"] > 10 * max(day["m6a"] for day in healthy_days)
+    assert spalled["nb4"] > max(day["nb4"] for day in healthy_days)
+    assert spalled["er"] > 1.5 * max(day["er"] for day in healthy_days)
+    # the TSA's own statistics barely move: the mesh dominates them
+    assert spalled["kurtosis"] == pytest.approx(healthy_days[0]["kurtosis"], rel=0.02)
