@@ -472,7 +472,9 @@ class RecordAssembler:
         short = [len(b) for b in record.blocks if len(b) != p.FRAME_BYTES]
         if short:
             raise _RecordRejected(f"{len(short)} SampleBlock frame(s) with {short[0]} data bytes, not 64")
-        blocks = p.decode_sample_blocks(b"".join(record.blocks))
+        payload = b"".join(record.blocks)
+        record.blocks.clear()  # the joined copy is all that is needed from here on
+        blocks = p.decode_sample_blocks(payload)
         rows = blocks.view(np.uint8).reshape(-1, p.FRAME_BYTES)
         waveforms: dict[int, np.ndarray] = {}
         frames = 0
@@ -498,6 +500,7 @@ class RecordAssembler:
                 )
             total = (counts.size - 1) * p.SAMPLES_PER_BLOCK + int(counts[-1])
             raw_counts = ordered["samples"].reshape(-1)[:total]
+            del ordered
             waveforms[channel_id] = p.dequantise(raw_counts, info.scale, info.offset)
             frames += counts.size
             samples += total

@@ -383,7 +383,9 @@ def quantise(values: np.ndarray) -> tuple[np.ndarray, float, float]:
 
 def dequantise(counts: np.ndarray, scale: float, offset: float) -> np.ndarray:
     """float64 physical values of int16 counts; the reserved counts become NaN, -inf, +inf."""
-    values = offset + scale * counts.astype(np.float64)
+    values = counts.astype(np.float64)
+    values *= scale  # in place: one float64 array per channel, no temporaries
+    values += offset
     values[counts == NO_VALUE_COUNT] = np.nan
     values[counts == NEG_INF_COUNT] = -np.inf
     values[counts == POS_INF_COUNT] = np.inf
