@@ -6,13 +6,15 @@ database enum types, so SQLite and PostgreSQL migrate the same way). Timestamps 
 time zone and always come back as aware UTC datetimes (:class:`UTCDateTime`), on SQLite too.
 
 Curves are float32 arrays stored as raw little-endian bytes (``LargeBinary``), never JSON.
-Per-tooth indicators carry a copy of the record's rig and ``taken_at`` so that a trend
-(rig × indicator × tooth over time) is one range scan of :data:`TREND_INDEX_NAME`.
+Per-tooth indicators carry a copy of the record's rig, ``taken_at`` and the result version's
+``is_current`` flag, so that a trend (rig × indicator × tooth over time) is one range scan of
+:data:`TREND_INDEX_NAME` with no join.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import functools
 from typing import Any
 
 import numpy as np
@@ -32,6 +34,18 @@ NAMING_CONVENTION = {
     "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
     "pk": "pk_%(table_name)s",
 }
+
+
+_ZERO = dt.timedelta(0)
+
+
+@functools.lru_cache(maxsize=8192)
+def _parse_sqlite_utc_text(value: str) -> dt.datetime:
+    return dt.datetime.fromisoformat(value).replace(tzinfo=dt.UTC)
+
+
+def _parse_sqlite_utc(value: str | None) -> dt.datetime | None:
+    return None if value is None else _parse_sqlite_utc_text(value)
 
 
 def utcnow() -> dt.datetime:
@@ -63,7 +77,17 @@ class UTCDateTime(sa.types.TypeDecorator[dt.datetime]):
             return None
         if value.tzinfo is None:
             return value.replace(tzinfo=dt.UTC)
+        if value.utcoffset() == _ZERO:
+            return value
         return value.astimezone(dt.UTC)
+
+    def result_processor(self, dialect: sa.Dialect, coltype: Any) -> Any:
+        if dialect.name != "sqlite":
+            return super().result_processor(dialect, coltype)
+
+        # SQLite hands back ISO text; fromisoformat (C) is several times faster than the
+        # generic regex parser, and a trend repeats each record's time once per tooth.
+        return _parse_sqlite_utc
 
 
 def float32_bytes(values: np.ndarray) -> bytes:
@@ -256,6 +280,8 @@ class ToothIndicator(Base):
     tooth: Mapped[int]
     indicator: Mapped[str] = mapped_column(sa.String(32))
     value: Mapped[float]
+    is_current: Mapped[bool] = mapped_column(default=True)
+    """Copy of the result version's flag, so that a trend needs no join."""
 
 
 class RecordMetric(Base):
@@ -277,6 +303,7 @@ class RecordMetric(Base):
     taken_at: Mapped[dt.datetime] = mapped_column(UTCDateTime())
     metric: Mapped[str] = mapped_column(sa.String(32))
     value: Mapped[float]
+    is_current: Mapped[bool] = mapped_column(default=True)
 
 
 class AlarmRule(Base):

@@ -2,7 +2,7 @@
 
 Revision ID: 0001
 Revises:
-Create Date: 2026-11-21 08:51:00.598236
+Create Date: 2026-11-21 08:57:35.342031
 """
 
 from __future__ import annotations
@@ -11,8 +11,6 @@ from collections.abc import Sequence
 
 import sqlalchemy as sa
 from alembic import op
-
-
 
 revision: str = '0001'
 down_revision: str | None = None
@@ -247,6 +245,7 @@ def upgrade() -> None:
     sa.Column('taken_at', sa.DateTime(timezone=True), nullable=False),
     sa.Column('metric', sa.String(length=32), nullable=False),
     sa.Column('value', sa.Double(), nullable=False),
+    sa.Column('is_current', sa.Boolean(), nullable=False),
     sa.ForeignKeyConstraint(['channel_id'], ['channels.id'], name=op.f('fk_record_metrics_channel_id_channels'), ondelete='CASCADE'),
     sa.ForeignKeyConstraint(['record_id'], ['records.id'], name=op.f('fk_record_metrics_record_id_records'), ondelete='CASCADE'),
     sa.ForeignKeyConstraint(['result_id'], ['result_versions.id'], name=op.f('fk_record_metrics_result_id_result_versions'), ondelete='CASCADE'),
@@ -268,6 +267,7 @@ def upgrade() -> None:
     sa.Column('tooth', sa.Integer(), nullable=False),
     sa.Column('indicator', sa.String(length=32), nullable=False),
     sa.Column('value', sa.Double(), nullable=False),
+    sa.Column('is_current', sa.Boolean(), nullable=False),
     sa.ForeignKeyConstraint(['channel_id'], ['channels.id'], name=op.f('fk_tooth_indicators_channel_id_channels'), ondelete='CASCADE'),
     sa.ForeignKeyConstraint(['record_id'], ['records.id'], name=op.f('fk_tooth_indicators_record_id_records'), ondelete='CASCADE'),
     sa.ForeignKeyConstraint(['result_id'], ['result_versions.id'], name=op.f('fk_tooth_indicators_result_id_result_versions'), ondelete='CASCADE'),

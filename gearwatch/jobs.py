@@ -1,0 +1,342 @@
+"""The per-record job: keep the raw file → read → pipeline → store results → evaluate alarms.
+
+One function, :func:`process_file`, serves ``gearwatch replay``, ``gearwatch watch``, the
+service's uploads and the Dramatiq actor (:mod:`gearwatch.worker`). It works inside a session
+it is given and never commits; the caller commits once per record, so a record's row, results
+and alarm changes appear together or not at all.
+
+Idempotency (on the raw file's sha256, per campaign):
+
+* the same file again with the same parameters changes nothing (outcome ``unchanged``);
+* the same file with new parameters adds a result version and keeps the old ones
+  (``reprocessed``); alarms are evaluated once per record, on its first accepted result;
+* a record rejected for bad input (unreadable file, failed quality check) is stored with
+  status ``rejected`` and the reason, and never raises alarms. It is tried again only with
+  other parameters (a looser quality limit may accept it) or when the failure was an internal
+  error rather than bad input.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import logging
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Literal
+
+from sqlalchemy.orm import Session
+
+from gearwatch.errors import InputError, NotFound
+from gearwatch.results import AnalysisParameters, RecordAnalysis
+from ingest.types import Campaign as CampaignConfig
+from ingest.types import ChannelConfig, RecordData, RecordEntry, RigConfig, TachometerConfig
+
+logger = logging.getLogger(__name__)
+
+Outcome = Literal["accepted", "rejected", "unchanged", "reprocessed"]
+
+Analyzer = Callable[
+    [RecordData, CampaignConfig, AnalysisParameters, str, dict[str, dict[str, float]]],
+    RecordAnalysis,
+]
+"""``(record, campaign, params, input_sha256, baseline_stats) -> RecordAnalysis``, where
+``baseline_stats`` maps each accelerometer channel to the mean ``baseline_stats`` of earlier
+records; the default (:func:`pipeline_analyzer`) runs :func:`gearwatch.pipeline.analyze_record`.
+Tests pass their own."""
+
+
+@dataclasses.dataclass(frozen=True)
+class JobResult:
+    record_id: int
+    sha256: str
+    outcome: Outcome
+    status: str
+    """The record's status afterwards: ``accepted`` or ``rejected``."""
+    reason: str = ""
+    result_id: int | None = None
+    alarm_changes: tuple[Any, ...] = ()
+    """:class:`storage.evaluation.AlarmChange` items caused by this record."""
+
+
+def pipeline_analyzer(
+    record: RecordData,
+    campaign: CampaignConfig,
+    params: AnalysisParameters,
+    input_sha256: str,
+    baselines: dict[str, dict[str, float]],
+) -> RecordAnalysis:
+    from gearwatch.pipeline import Baselines, analyze_record
+
+    running = {
+        channel: Baselines(
+            na4_residual_variance=stats.get("residual_variance"),
+            nb4_envelope_variance=stats.get("envelope_variance"),
+        )
+        for channel, stats in baselines.items()
+    }
+    return analyze_record(record, campaign, params, input_sha256=input_sha256, baselines=running)
+
+
+def parse_taken_at(text: str) -> dt.datetime:
+    """An ISO 8601 timestamp with time zone (``Z`` allowed) as an aware UTC datetime."""
+    try:
+        value = dt.datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise InputError(f"invalid timestamp {text!r} (ISO 8601 with time zone expected)") from None
+    if value.tzinfo is None:
+        raise InputError(f"timestamp {text!r} has no time zone")
+    return value.astimezone(dt.UTC)
+
+
+def record_suffix(path: str | Path) -> str:
+    """The suffix the readers know the file by (``.csv.gz`` rather than ``.gz``)."""
+    name = Path(path).name.lower()
+    try:
+        from ingest.sources import registered_suffixes
+
+        matches = [s for s in registered_suffixes() if name.endswith(s)]
+    except ImportError:  # pragma: no cover - ingest is part of the package
+        matches = []
+    if matches:
+        return max(matches, key=len)
+    return Path(path).suffix.lower()
+
+
+def campaign_config(campaign: Any) -> CampaignConfig:
+    """Rebuild the manifest settings of a stored campaign (:class:`storage.models.Campaign`)."""
+    data = campaign.manifest or {}
+    rig = data.get("rig") or {"id": campaign.rig.name}
+    tach = data.get("tachometer")
+    return CampaignConfig(
+        id=campaign.name,
+        description=campaign.description,
+        rig=RigConfig(**rig),
+        sample_rate_hz=data.get("sample_rate_hz"),
+        tachometer=TachometerConfig(**tach) if tach else None,
+        channels=tuple(ChannelConfig(**c) for c in data.get("channels", ())),
+        root=Path(data.get("root", ".")),
+    )
+
+
+def _expected_parameters(params: AnalysisParameters, campaign: CampaignConfig) -> dict[str, Any]:
+    expected: dict[str, Any] = dict(params.to_dict())
+    expected.update(
+        pinion_teeth=campaign.rig.pinion_teeth,
+        gear_teeth=campaign.rig.gear_teeth,
+        tooth1_pitch_angle_deg=campaign.rig.tooth1_pitch_angle_deg,
+    )
+    if campaign.tachometer is not None:
+        tach = campaign.tachometer
+        expected["tachometer"] = {
+            "kind": tach.kind, "shaft": tach.shaft, "pulses_per_rev": tach.pulses_per_rev
+        }
+    return expected
+
+
+def _same_parameters(stored: dict[str, Any], expected: dict[str, Any]) -> bool:
+    """Stored result parameters match on every key both sides know."""
+    from storage.repositories import _json_safe
+
+    expected = _json_safe(expected)
+    return all(stored[key] == value for key, value in expected.items() if key in stored)
+
+
+def _baseline_stats(
+    session: Session, campaign_id: int, campaign: CampaignConfig, before: dt.datetime
+) -> dict[str, dict[str, float]]:
+    """Per accelerometer channel, the mean ``baseline_stats`` of the campaign's earlier
+    accepted records (empty when there are none: NA4/NB4 then use the record's own variance)."""
+    from storage.repositories import RecordRepository
+
+    records = RecordRepository(session)
+    return {
+        channel.name: records.mean_baseline_stats(campaign_id, channel.name, before=before)
+        for channel in campaign.accelerometer_channels
+    }
+
+
+def process_file(
+    session: Session,
+    path: str | Path,
+    campaign: CampaignConfig,
+    *,
+    raw_store: Any,
+    params: AnalysisParameters | None = None,
+    taken_at: dt.datetime | str | None = None,
+    label: str = "",
+    file_name: str | None = None,
+    analyzer: Analyzer | None = None,
+) -> JobResult:
+    """Ingest one record file of ``campaign`` (see the module docstring).
+
+    ``raw_store`` is a :class:`storage.raw_store.RawStore`. ``taken_at`` defaults to the
+    manifest's entry for this file, else the reader's ``taken_at`` metadata, else the file's
+    modification time. Bad input never raises: the record is stored as rejected. Internal
+    errors (bugs) are stored as rejected too, logged with their traceback and retried on the
+    next ingestion.
+    """
+    from ingest.sources import file_sha256
+    from storage.repositories import AlarmRuleRepository, CampaignRepository, RecordRepository
+
+    path = Path(path)
+    params = params or AnalysisParameters()
+    analyze = analyzer or pipeline_analyzer
+    if not path.is_file():
+        raise InputError(f"{path}: no such record file")
+    sha256 = file_sha256(path)
+
+    campaigns = CampaignRepository(session)
+    is_new_rig = False
+    stored_campaign = campaigns.get_by_name(campaign.id)
+    if stored_campaign is None:
+        from storage.repositories import RigRepository
+
+        is_new_rig = RigRepository(session).get_by_name(campaign.rig.id) is None
+    stored_campaign = campaigns.ensure(campaign)
+    if is_new_rig:
+        AlarmRuleRepository(session).ensure_defaults(stored_campaign.rig_id)
+
+    records = RecordRepository(session)
+    record = records.get_by_sha256(stored_campaign.id, sha256)
+    expected = _expected_parameters(params, campaign)
+    if record is not None:
+        if record.status == "accepted":
+            if any(_same_parameters(r.parameters, expected) for r in records.results(record.id)):
+                return JobResult(record.id, sha256, "unchanged", record.status,
+                                 result_id=_current_id(records, record.id))
+        elif record.status == "rejected" and not (record.quality or {}).get("internal_error"):
+            rejected_with = (record.quality or {}).get("rejected_parameters")
+            if rejected_with is not None and _same_parameters(rejected_with, expected):
+                return JobResult(record.id, sha256, "unchanged", record.status, record.reason)
+        return _analyze_and_store(session, record, campaign, params, analyze, stored_campaign.id)
+
+    if taken_at is None:
+        taken_at = _taken_at_from_manifest(path, campaign)
+    if isinstance(taken_at, str):
+        taken_at = parse_taken_at(taken_at)
+    kept = raw_store.keep(path, sha256, record_suffix(path))
+    provisional = taken_at or dt.datetime.fromtimestamp(path.stat().st_mtime, dt.UTC)
+    record = records.add(
+        stored_campaign,
+        sha256=sha256,
+        file_name=file_name or path.name,
+        raw_location=str(kept),
+        taken_at=provisional,
+        size_bytes=path.stat().st_size,
+        label=label or _label_from_manifest(path, campaign),
+    )
+    return _analyze_and_store(
+        session, record, campaign, params, analyze, stored_campaign.id,
+        time_from_metadata=taken_at is None,
+    )
+
+
+def _current_id(records: Any, record_id: int) -> int | None:
+    current = records.current_result(record_id)
+    return None if current is None else int(current.id)
+
+
+def _manifest_entry(path: Path, campaign: CampaignConfig) -> RecordEntry | None:
+    resolved = path.resolve()
+    for entry in campaign.records:
+        if campaign.record_path(entry).resolve() == resolved:
+            return entry
+    return None
+
+
+def _taken_at_from_manifest(path: Path, campaign: CampaignConfig) -> dt.datetime | None:
+    entry = _manifest_entry(path, campaign)
+    return None if entry is None else parse_taken_at(entry.taken_at)
+
+
+def _label_from_manifest(path: Path, campaign: CampaignConfig) -> str:
+    entry = _manifest_entry(path, campaign)
+    return "" if entry is None else entry.label
+
+
+def _analyze_and_store(
+    session: Session,
+    record: Any,
+    campaign: CampaignConfig,
+    params: AnalysisParameters,
+    analyze: Analyzer,
+    campaign_id: int,
+    *,
+    time_from_metadata: bool = False,
+) -> JobResult:
+    from ingest.sources import read_record
+    from storage.evaluation import evaluate_record
+    from storage.repositories import RecordRepository, _json_safe
+
+    records = RecordRepository(session)
+    first_acceptance = record.status != "accepted"
+    expected = _json_safe(_expected_parameters(params, campaign))
+    try:
+        data = read_record(record.raw_location, campaign)
+        if time_from_metadata and data.metadata.get("taken_at"):
+            record.taken_at = parse_taken_at(data.metadata["taken_at"])
+        baselines = _baseline_stats(session, campaign_id, campaign, record.taken_at)
+        analysis = analyze(data, campaign, params, record.sha256, baselines)
+    except InputError as error:
+        records.mark_rejected(record, _one_line(error))
+        record.quality = {"rejected_parameters": expected, "error": type(error).__name__}
+        session.flush()
+        return JobResult(record.id, record.sha256, "rejected", "rejected", record.reason)
+    except Exception as error:
+        logger.exception("internal error while analysing %s", record.raw_location)
+        records.mark_rejected(
+            record, f"internal error: {type(error).__name__}: {_one_line(error)}"
+        )
+        record.quality = {"internal_error": True, "error": type(error).__name__}
+        session.flush()
+        return JobResult(record.id, record.sha256, "rejected", "rejected", record.reason)
+
+    if not first_acceptance and records.result_for_parameters(
+        record.id, analysis.provenance.parameters
+    ) is not None:
+        return JobResult(record.id, record.sha256, "unchanged", record.status,
+                         result_id=_current_id(records, record.id))
+    records.mark_accepted(record, analysis)
+    result = records.add_result(record, analysis)
+    changes: tuple[Any, ...] = ()
+    if first_acceptance:
+        changes = tuple(evaluate_record(session, record, result))
+    outcome: Outcome = "accepted" if first_acceptance else "reprocessed"
+    return JobResult(record.id, record.sha256, outcome, "accepted", result_id=result.id,
+                     alarm_changes=changes)
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split()) or type(error).__name__
+
+
+def reprocess_record(
+    session: Session,
+    record_id: int,
+    params: AnalysisParameters,
+    *,
+    analyzer: Analyzer | None = None,
+) -> JobResult:
+    """Analyse a stored record again from its kept raw file with ``params``.
+
+    A new parameter set adds a result version (the old ones are kept); the same parameters
+    again change nothing.
+    """
+    from storage.repositories import CampaignRepository, RecordRepository
+
+    records = RecordRepository(session)
+    record = records.get(record_id)
+    if not os.path.isfile(record.raw_location):
+        raise NotFound(f"raw file of record {record_id} is missing: {record.raw_location}")
+    campaign = campaign_config(CampaignRepository(session).get(record.campaign_id))
+    expected = _expected_parameters(params, campaign)
+    if record.status == "accepted" and any(
+        _same_parameters(r.parameters, expected) for r in records.results(record.id)
+    ):
+        return JobResult(record.id, record.sha256, "unchanged", record.status,
+                         result_id=_current_id(records, record.id))
+    return _analyze_and_store(
+        session, record, campaign, params, analyzer or pipeline_analyzer, record.campaign_id
+    )

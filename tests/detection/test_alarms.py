@@ -1,0 +1,290 @@
+"""Alarm logic on hand-made sequences: baseline, direction, persistence, hysteresis, ack."""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from detection.alarms import (
+    INDICATOR_DIRECTIONS,
+    MAD_TO_SIGMA,
+    RuleSettings,
+    TrackState,
+    acknowledge,
+    indicator_direction,
+    learn_baseline,
+    run,
+    step,
+)
+from gearwatch.results import METRIC_NAMES, TOOTH_INDICATORS
+
+# Baseline of [10, 10, 10, 10] → centre 10, MAD 0, spread = floor = 5 % of 10 = 0.5.
+BASE = [10.0, 10.0, 10.0, 10.0]
+SPREAD = 0.5
+
+
+def v(score: float) -> float:
+    """The value that lies ``score`` baseline units above the BASE centre."""
+    return 10.0 + score * SPREAD
+
+
+def rule(**overrides: float) -> RuleSettings:
+    settings: dict = {
+        "indicator": "mci_depth",
+        "baseline_records": 4,
+        "warning_level": 4.0,
+        "alarm_level": 8.0,
+        "clear_level": 2.0,
+        "persistence": 3,
+    }
+    settings.update(overrides)
+    return RuleSettings(**settings)
+
+
+# -- baseline --------------------------------------------------------------------------------
+def test_baseline_is_median_and_scaled_mad_against_statistics_module() -> None:
+    values = [3.0, 7.0, 1.0, 4.0, 100.0, 5.0, 6.0]
+    centre = statistics.median(values)
+    mad = statistics.median(abs(x - centre) for x in values)
+    baseline = learn_baseline(values, spread_floor_fraction=0.0)
+    assert baseline.centre == centre == 5.0
+    assert baseline.spread == pytest.approx(1.4826 * mad)
+    assert baseline.count == 7
+
+
+def test_scaled_mad_estimates_gaussian_sigma() -> None:
+    samples = np.random.default_rng(7).normal(3.0, 2.0, 40_000)
+    baseline = learn_baseline(samples.tolist(), spread_floor_fraction=0.0)
+    assert baseline.spread == pytest.approx(2.0, rel=0.03)
+    assert MAD_TO_SIGMA == pytest.approx(1 / 0.6744897501960817, rel=1e-4)
+
+
+def test_spread_floor_relative_and_absolute() -> None:
+    assert learn_baseline([2.0, 2.0, 2.0]).spread == pytest.approx(0.1)
+    assert learn_baseline([0.0, 0.0, 0.0], spread_floor_abs=1e-3).spread == 1e-3
+    # A real spread above the floor is kept.
+    assert learn_baseline([1.0, 2.0, 3.0]).spread == pytest.approx(1.4826)
+
+
+def test_baseline_ignores_non_finite_and_refuses_empty() -> None:
+    assert learn_baseline([1.0, math.nan, 3.0, math.inf]).centre == 2.0
+    with pytest.raises(ValueError):
+        learn_baseline([math.nan])
+
+
+def test_directions_cover_every_indicator_and_larger_is_worse() -> None:
+    assert set(INDICATOR_DIRECTIONS) == set(TOOTH_INDICATORS) | set(METRIC_NAMES)
+    assert indicator_direction("mci_depth") == "higher_is_worse"
+    with pytest.raises(ValueError, match="unknown indicator"):
+        indicator_direction("nonsense")
+
+
+def test_score_sign_follows_direction() -> None:
+    high = learn_baseline(BASE, direction="higher_is_worse")
+    low = learn_baseline(BASE, direction="lower_is_worse")
+    assert high.score(12.0) == pytest.approx(4.0)
+    assert low.score(12.0) == pytest.approx(-4.0)
+    assert low.score(8.0) == pytest.approx(4.0)
+
+
+def test_lower_is_worse_rule_alarms_on_a_drop() -> None:
+    falling = RuleSettings("custom", baseline_records=4, persistence=2,
+                           direction="lower_is_worse")
+    states, _ = run([*BASE, 5.0, 5.0], falling)
+    assert states[-1] == "alarm"
+    rising_states, _ = run([*BASE, 15.0, 15.0], falling)
+    assert rising_states[-1] is None
+
+
+def test_known_indicator_direction_cannot_be_overridden() -> None:
+    assert RuleSettings("mci_depth", direction="lower_is_worse").direction == "higher_is_worse"
+
+
+# -- learning ----------------------------------------------------------------------------------
+def test_no_alarm_while_learning_even_for_huge_values() -> None:
+    states, transitions = run([1e9, 1e9, 1e9], rule())
+    assert states == [None, None, None]
+    assert all(not t for t in transitions)
+
+
+def test_baseline_is_learned_from_first_n_values_only() -> None:
+    state = TrackState()
+    for value in [*BASE, v(1), v(1), v(1)]:
+        state = step(state, value, rule()).state
+    assert state.baseline is not None
+    assert state.baseline.centre == 10.0 and state.baseline.count == 4
+    assert state.baseline_values == tuple(BASE)
+
+
+# -- persistence -----------------------------------------------------------------------------
+def test_warning_opens_exactly_at_the_kth_consecutive_record() -> None:
+    states, transitions = run([*BASE, v(5), v(5), v(5)], rule())
+    assert states == [None] * 6 + ["warning"]
+    assert [(t.kind, t.opened) for t in transitions[6]] == [("warning", True)]
+    assert transitions[6][0].score == pytest.approx(5.0)
+
+
+def test_one_record_below_the_level_resets_persistence() -> None:
+    values = [*BASE, v(5), v(5), v(3), v(5), v(5)]
+    states, _ = run(values, rule())
+    assert all(s is None for s in states)
+    states, _ = run([*values, v(5)], rule())
+    assert states[-1] == "warning"
+
+
+def test_k_records_beyond_alarm_level_open_an_alarm_directly() -> None:
+    states, transitions = run([*BASE, v(9), v(9), v(9)], rule())
+    assert states[-1] == "alarm"
+    assert [(t.kind, t.opened) for t in transitions[-1]] == [("alarm", True)]
+
+
+def test_warning_escalates_after_k_records_beyond_alarm_level() -> None:
+    # Two beyond warning, then alarm-level values: warning opens at the 3rd excursion
+    # (only 1 beyond alarm so far), escalation needs 3 consecutive beyond alarm.
+    values = [*BASE, v(5), v(5), v(9), v(9), v(9)]
+    states, transitions = run(values, rule())
+    assert states[4:] == [None, None, "warning", "warning", "alarm"]
+    assert [(t.kind, t.opened) for t in transitions[-1]] == [("alarm", False)]
+
+
+def test_persistence_one_reacts_on_the_first_record() -> None:
+    states, _ = run([*BASE, v(4.5)], rule(persistence=1))
+    assert states[-1] == "warning"
+
+
+def test_level_is_strictly_beyond() -> None:
+    states, _ = run([*BASE, v(4.0), v(4.0), v(4.0)], rule())
+    assert states[-1] is None
+
+
+# -- hysteresis ------------------------------------------------------------------------------
+def test_values_between_clear_and_warning_keep_the_alarm_open() -> None:
+    values = [*BASE, v(5), v(5), v(5)] + [v(3)] * 20
+    states, _ = run(values, rule())
+    assert states[-1] == "warning"
+
+
+def test_clears_after_k_records_below_clear_level() -> None:
+    values = [*BASE, v(5), v(5), v(5), v(1), v(1), v(3), v(1), v(1), v(1)]
+    states, transitions = run(values, rule())
+    # v(3) interrupted the first run of two: clearing needs three in a row again.
+    assert states[7:] == ["warning", "warning", "warning", "warning", "warning", None]
+    assert [(t.kind, t.opened) for t in transitions[-1]] == [("cleared", False)]
+
+
+def test_a_new_excursion_after_clearing_opens_a_new_alarm() -> None:
+    values = [*BASE, v(5), v(5), v(5), v(0), v(0), v(0), v(5), v(5), v(5)]
+    states, transitions = run(values, rule())
+    assert states[-1] == "warning"
+    opened = [i for i, ts in enumerate(transitions) for t in ts if t.opened]
+    assert opened == [6, 12]
+
+
+# -- acknowledgement ---------------------------------------------------------------------------
+def test_ack_keeps_warning_quiet_then_escalation_re_alarms_then_ack_again() -> None:
+    values = [*BASE, v(5), v(5), v(5), v(6), v(6), v(9), v(9), v(9), v(9), v(1), v(1), v(1)]
+    states, transitions = run(values, rule(), acknowledge_after=[6, 12])
+    assert states[6:] == [
+        "acknowledged",  # warning acknowledged
+        "acknowledged",
+        "acknowledged",  # still warning level: stays acknowledged
+        "acknowledged",
+        "acknowledged",
+        "alarm",  # 3 records beyond alarm: re-escalated, needs a new ack
+        "acknowledged",
+        "acknowledged",  # the new ack survives while it clears ...
+        "acknowledged",
+        None,  # ... and the alarm clears after 3 records below the clear level
+    ]
+    kinds = [(i, t.kind) for i, ts in enumerate(transitions) for t in ts]
+    assert kinds == [(6, "warning"), (11, "alarm"), (15, "cleared")]
+
+
+def test_acknowledged_alarm_stays_acknowledged_when_values_grow() -> None:
+    values = [*BASE, v(9), v(9), v(9), v(50), v(90), v(500)]
+    states, transitions = run(values, rule(), acknowledge_after=[6])
+    assert states[6:] == ["acknowledged"] * 4
+    assert not any(transitions[7:])
+
+
+def test_acknowledge_needs_an_open_unacknowledged_alarm() -> None:
+    with pytest.raises(ValueError, match="no open alarm"):
+        acknowledge(TrackState())
+    state = TrackState(level="warning")
+    with pytest.raises(ValueError, match="already"):
+        acknowledge(acknowledge(state))
+
+
+# -- odds and ends -----------------------------------------------------------------------------
+def test_non_finite_values_change_nothing() -> None:
+    values = [*BASE[:2], math.nan, *BASE[2:], v(5), math.nan, v(5), math.inf, v(5)]
+    states, _ = run(values, rule())
+    assert states[-1] == "warning"  # NaN did not reset persistence, nor count in the baseline
+    result = step(TrackState(), math.nan, rule())
+    assert result.state == TrackState() and result.score is None
+
+
+def test_state_round_trips_through_json() -> None:
+    state = TrackState()
+    for value in [*BASE, v(5), v(5), v(5), v(9)]:
+        state = step(state, value, rule()).state
+    state = acknowledge(state)
+    again = TrackState.from_dict(json.loads(json.dumps(state.to_dict())))
+    assert again == state
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"baseline_records": 0},
+        {"persistence": 0},
+        {"clear_level": 5.0},  # not below warning
+        {"warning_level": 9.0},  # above alarm
+        {"spread_floor_abs": 0.0},
+    ],
+)
+def test_invalid_rules_are_refused(overrides: dict) -> None:
+    with pytest.raises(ValueError):
+        rule(**overrides)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    scores=st.lists(st.floats(-5, 15, allow_nan=False), min_size=0, max_size=40),
+    persistence=st.integers(1, 4),
+)
+def test_transitions_obey_persistence_and_hysteresis(scores: list[float], persistence: int) -> None:
+    """Independent check of every transition against the score history."""
+    settings_ = rule(persistence=persistence)
+    values = [*BASE, *(v(s) for s in scores)]
+    states, transitions = run(values, settings_)
+    history = [(v(s) - 10.0) / SPREAD for s in scores]  # the scores the track sees
+    previous: str | None = None
+    for index, (state, ts) in enumerate(zip(states[4:], transitions[4:], strict=True)):
+        window = history[max(0, index - persistence + 1): index + 1]
+        full = len(window) == persistence
+        for t in ts:
+            if t.kind == "warning":
+                assert full and all(s > 4.0 for s in window) and previous is None
+            elif t.kind == "alarm":
+                assert full and all(s > 8.0 for s in window) and previous in (None, "warning")
+            else:
+                assert full and all(s < 2.0 for s in window) and previous is not None
+        if not ts:
+            assert state == previous
+        previous = state
+
+
+def test_docstring_examples_run() -> None:
+    import doctest
+
+    import detection.alarms
+
+    outcome = doctest.testmod(detection.alarms)
+    assert outcome.attempted >= 6 and outcome.failed == 0
