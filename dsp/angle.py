@@ -162,8 +162,10 @@ def angle_lowpass(
     """Zero-phase FFT low-pass used as the angle-domain anti-alias filter.
 
     Gain 1 below ``PASSBAND_FRACTION × cutoff_hz``, raised-cosine roll-off to exactly 0 at
-    ``cutoff_hz``, 0 above. The signal is extended by even reflection (by up to 20 periods of the
-    roll-off width, at most the record length) before filtering and cropped afterwards.
+    ``cutoff_hz``, 0 above. The signal is extended by even reflection (by up to 20 periods of
+    the roll-off width, at most the record length) before filtering and cropped afterwards, so
+    the FFT's circularity does not wrap the end onto the start; within about one period of the
+    roll-off width of either end the output is approximate.
 
     Examples
     --------
@@ -179,7 +181,10 @@ def angle_lowpass(
     pass_hz = PASSBAND_FRACTION * cutoff_hz
     transition_hz = cutoff_hz - pass_hz
     pad = min(n - 1, int(np.ceil(20.0 * sample_rate_hz / transition_hz)))
-    padded = np.pad(x, [(0, 0)] * (x.ndim - 1) + [(pad, pad)], mode="reflect") if pad > 0 else x
+    widths = [(0, 0)] * (x.ndim - 1) + [(pad, pad)]
+    # Even reflection keeps the value continuous at the ends without adding a local offset
+    # (odd reflection would turn out-of-band content at the last sample into a step).
+    padded = np.pad(x, widths, mode="reflect") if pad > 0 else x
     n_fft = scipy.fft.next_fast_len(padded.shape[-1], real=True)
     freqs = np.fft.rfftfreq(n_fft, d=1.0 / sample_rate_hz)
     gain = np.clip((cutoff_hz - freqs) / transition_hz, 0.0, 1.0)

@@ -26,7 +26,6 @@ from typing import Literal
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.ndimage import median_filter
 
 __all__ = [
     "PulseRepair",
@@ -222,8 +221,8 @@ def pulse_times_from_waveform(
         Decision level. Default: midway between the robust low and high levels
         (:func:`waveform_levels`).
     hysteresis : float, optional
-        Full width of the Schmitt band. Default: 8 × the estimated noise RMS, at least 20 % and at
-        most 60 % of the level difference.
+        Full width of the Schmitt band. Default: 8 × the estimated noise RMS, at least 40 % and at
+        most 60 % of the level difference (a wide band also puts more samples into the edge fit).
     edge : {"rising", "falling"}
         Which edge marks a pulse.
 
@@ -266,7 +265,7 @@ def pulse_times_from_waveform(
         if threshold is None:
             threshold = 0.5 * (low_level + high_level)
         if hysteresis is None:
-            hysteresis = min(max(8.0 * noise_rms, 0.2 * swing), 0.6 * swing)
+            hysteresis = min(max(8.0 * noise_rms, 0.4 * swing), 0.6 * swing)
         if swing <= 0:
             return np.empty(0)
     if edge == "falling":
@@ -293,11 +292,22 @@ def pulse_times_from_waveform(
 
 
 def _local_period(intervals: FloatArray) -> FloatArray:
-    """Running median of the pulse intervals (robust to an isolated missing or extra pulse)."""
-    if intervals.size < 3:
+    """Running median of the pulse intervals (robust to an isolated missing or extra pulse).
+
+    Centred window of ``LOCAL_PERIOD_WINDOW`` intervals; near the ends the first or last full
+    window is used (not edge replication, which would let an end outlier be its own median).
+    """
+    n = intervals.size
+    if n < 3:
         return np.full(intervals.shape, float(np.median(intervals)))
-    window = min(LOCAL_PERIOD_WINDOW, intervals.size)
-    return np.asarray(median_filter(intervals, size=window, mode="nearest"), dtype=np.float64)
+    window = min(LOCAL_PERIOD_WINDOW, n)
+    medians = np.median(np.lib.stride_tricks.sliding_window_view(intervals, window), axis=1)
+    half = window // 2
+    out = np.empty(n)
+    out[half : half + medians.size] = medians
+    out[:half] = medians[0]
+    out[half + medians.size :] = medians[-1]
+    return out
 
 
 def _validate_pulse_times(pulse_times_s: ArrayLike) -> FloatArray:
@@ -326,8 +336,8 @@ def repair_pulse_times(
       inserted at its midpoint;
     - a short interval (``r < 1 - tolerance``) that together with a neighbour makes one period
       (``|r_i + r_neighbour - 1| <= tolerance``) holds a spurious pulse: the pulse they share is
-      removed (the pairing whose sum is closer to 1 wins; at the record ends, an unpaired short
-      first or last interval loses its outer pulse).
+      removed (the pairing whose sum is closer to 1 wins; at the record ends, removing the
+      outer pulse is a third hypothesis, chosen when the interval beyond is then closest to 1).
 
     Anything else (for example a gap of 3 periods) is left as it is; :func:`analyze_tachometer`
     refuses such a record. Pulses are assumed equally spaced in shaft angle.
@@ -376,22 +386,24 @@ def repair_pulse_times(
             continue
         if r >= 1.0 - tolerance:
             continue  # long but not ≈ 2 periods: unexplained, left for the caller's check
-        candidates: list[tuple[float, int, int]] = []  # (|sum - 1|, neighbour, shared pulse)
+        # Hypotheses: (deviation of the merged or remaining interval from 1, neighbour interval
+        # consumed or -1, pulse to remove).
+        candidates: list[tuple[float, int, int]] = []
         if i > 0 and not consumed[i - 1]:
             candidates.append((abs(r + ratio[i - 1] - 1.0), int(i) - 1, int(i)))
         if i + 1 < n_int and not consumed[i + 1]:
             candidates.append((abs(r + ratio[i + 1] - 1.0), int(i) + 1, int(i) + 1))
+        if i == 0:  # the first pulse itself may be the spurious one
+            candidates.append((abs(ratio[1] - 1.0), -1, 0))
+        if i == n_int - 1:
+            candidates.append((abs(ratio[i - 1] - 1.0), -1, n_int))
         candidates = [c for c in candidates if c[0] <= tolerance]
         if candidates:
             _, neighbour, pulse = min(candidates)
             remove.add(pulse)
-            consumed[i] = consumed[neighbour] = True
-        elif i == 0:
-            remove.add(0)
             consumed[i] = True
-        elif i == n_int - 1:
-            remove.add(n_int)
-            consumed[i] = True
+            if neighbour >= 0:
+                consumed[neighbour] = True
 
     repairs = [PulseRepair("extra", k, float(t[k])) for k in remove]
     repairs += [PulseRepair("missing", k, float(time_s)) for k, time_s in insert]

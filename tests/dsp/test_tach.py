@@ -1,0 +1,239 @@
+"""Tachometer: edge times, pulse repair, speed statistics and refusals, on known-answer signals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.special import erf
+
+from dsp.synthetic import synthetic_gear_record
+from dsp.tach import (
+    PulseRepair,
+    TachometerError,
+    analyze_tachometer,
+    pulse_times_from_waveform,
+    repair_pulse_times,
+    waveform_levels,
+)
+
+FS = 20_000.0
+
+
+def trapezoid_train(edge_samples: np.ndarray, ramp_samples: float, high_samples: float, n: int):
+    """0..1 pulse train: linear ramps of the given width, mid-level exactly at each edge."""
+    i = np.arange(n, dtype=float)
+    x = np.zeros(n)
+    for e in edge_samples:
+        up = np.clip((i - e) / ramp_samples + 0.5, 0, 1)
+        down = np.clip(0.5 - (i - e - high_samples) / ramp_samples, 0, 1)
+        x = np.maximum(x, up * down)
+    return x
+
+
+@pytest.mark.parametrize("ramp_samples", [2.0, 3.0, 12.0])
+def test_ttl_edges_exact_to_sub_sample(ramp_samples: float) -> None:
+    # Fast ramps are timed by the bracketing pair, slow ones by the in-band fit: both exact on
+    # a linear ramp at least 2 samples wide (then both bracketing samples lie on the ramp), at
+    # arbitrary fractional positions.
+    rng = np.random.default_rng(1)
+    edges = np.cumsum(rng.uniform(180.0, 220.0, 40)) + 50.3
+    x = 5.0 * trapezoid_train(edges, ramp_samples, 60.0, int(edges[-1]) + 200)
+    found = pulse_times_from_waveform(x, FS) * FS
+    assert found.size == edges.size
+    np.testing.assert_allclose(found, edges, atol=1e-9)
+
+
+def test_falling_edges() -> None:
+    edges = np.arange(30) * 200.0 + 100.37
+    x = trapezoid_train(edges, 2.0, 50.0, 6200)
+    falling = pulse_times_from_waveform(x, FS, edge="falling") * FS
+    np.testing.assert_allclose(falling, edges + 50.0, atol=1e-9)
+
+
+def test_synthetic_ttl_edges_match_true_pulse_times() -> None:
+    rec = synthetic_gear_record(duration_s=1.5, pulses_per_rev=3, noise_rms=0.0)
+    found = pulse_times_from_waveform(rec.tach_waveform, rec.sample_rate_hz)
+    assert found.size == rec.pulse_times_s.size
+    assert np.max(np.abs(found - rec.pulse_times_s)) * FS < 1e-6
+
+
+def noisy_analogue(
+    edges: np.ndarray, n: int, width_samples: float, noise: float, seed: int, high: float = 80.0
+):
+    """Smooth (erf-shaped) pulses plus white noise; each rising edge crosses 0.5 at ``edges``
+    (the pulses are long enough for the edges not to overlap)."""
+    i = np.arange(n, dtype=float)
+    x = np.zeros(n)
+    for e in edges:
+        x += 0.5 * (erf((i - e) / width_samples) - erf((i - e - high) / width_samples))
+    return x + noise * np.random.default_rng(seed).standard_normal(n)
+
+
+def test_noisy_analogue_edges_sub_sample_with_hysteresis() -> None:
+    edges = np.arange(1, 200) * 160.0 + np.random.default_rng(2).uniform(0, 1, 199)
+    noise = 0.03
+    x = noisy_analogue(edges, 32_200, width_samples=6.0, noise=noise, seed=3)
+    found = pulse_times_from_waveform(x, FS) * FS
+    assert found.size == edges.size  # hysteresis: no chatter, no lost edge
+    error = found - edges
+    # Noise / edge slope is 0.03 / (1 / (6 √π)) ≈ 0.32 samples: the error of one threshold
+    # crossing. The fit through the in-band samples averages it down (measured 0.16). No bias.
+    assert np.sqrt(np.mean(error**2)) < 0.2
+    assert abs(np.mean(error)) < 0.05
+
+
+def test_without_hysteresis_noise_makes_extra_edges() -> None:
+    # Slow noisy edges: the default band gives exactly one edge each, a zero-width band chatters.
+    edges = np.arange(1, 100) * 320.0
+    x = noisy_analogue(edges, 32_200, width_samples=30.0, noise=0.03, seed=3, high=160.0)
+    found = pulse_times_from_waveform(x, FS) * FS
+    assert found.size == edges.size
+    assert np.sqrt(np.mean((found - edges) ** 2)) < 0.5
+    chattering = pulse_times_from_waveform(x, FS, threshold=0.5, hysteresis=0.0)
+    assert chattering.size > edges.size + 20
+
+
+def test_waveform_levels_ignore_spikes_and_estimate_noise() -> None:
+    rng = np.random.default_rng(4)
+    x = np.where((np.arange(100_000) % 400) < 100, 5.0, 0.2) + 0.05 * rng.standard_normal(100_000)
+    x[::5000] = 40.0  # rare spikes
+    low, high, noise = waveform_levels(x)
+    assert low == pytest.approx(0.2, abs=0.01)
+    assert high == pytest.approx(5.0, abs=0.01)
+    assert noise == pytest.approx(0.05, rel=0.1)
+
+
+def test_constant_or_bad_waveform() -> None:
+    assert pulse_times_from_waveform(np.ones(1000), FS).size == 0
+    with pytest.raises(TachometerError, match="NaN"):
+        pulse_times_from_waveform(np.array([0.0, np.nan, 1.0]), FS)
+    with pytest.raises(TachometerError, match="1-D"):
+        pulse_times_from_waveform(np.zeros((2, 10)), FS)
+
+
+# --------------------------------------------------------------------------- repair
+
+
+def speed_ramp_pulses(n: int, period_s: float = 0.06, drift: float = 0.002) -> np.ndarray:
+    """Pulse times with a slowly shrinking period (a gentle run-up)."""
+    periods = period_s * (1.0 - drift * np.arange(n - 1) / n)
+    return np.concatenate([[0.013], 0.013 + np.cumsum(periods)])
+
+
+def test_missing_pulse_repaired_and_reported() -> None:
+    truth = speed_ramp_pulses(60)
+    t = np.delete(truth, 23)
+    repaired, repairs = repair_pulse_times(t)
+    assert repairs == (PulseRepair("missing", 23, repairs[0].time_s),)
+    np.testing.assert_allclose(repaired, truth, atol=1e-6)  # midpoint of a near-uniform gap
+    assert repairs[0].time_s == pytest.approx(truth[23], abs=1e-6)
+
+
+@pytest.mark.parametrize("fraction", [0.5, 0.37, 0.02, 0.95])
+def test_extra_pulse_removed_and_reported(fraction: float) -> None:
+    truth = speed_ramp_pulses(60)
+    spurious = truth[30] + fraction * (truth[31] - truth[30])
+    t = np.sort(np.append(truth, spurious))
+    repaired, repairs = repair_pulse_times(t)
+    assert len(repairs) == 1 and repairs[0].kind == "extra"
+    # The removed pulse is the spurious one (or, for a bounce at 2 % / 95 %, possibly the real
+    # neighbour: the timing error is then that small fraction of a period).
+    np.testing.assert_allclose(repaired, truth, atol=min(fraction, 1 - fraction) * 0.06 + 1e-12)
+    assert repairs[0].index in (30, 31, 32)
+
+
+def test_missing_and_extra_together_and_at_edges() -> None:
+    truth = speed_ramp_pulses(80)
+    t = np.delete(truth, [10, 50])
+    t = np.sort(np.append(t, [truth[70] + 0.4 * 0.06, truth[0] - 0.5 * 0.06 + 0.02]))
+    repaired, repairs = repair_pulse_times(t)
+    kinds = sorted(r.kind for r in repairs)
+    assert kinds == ["extra", "extra", "missing", "missing"]
+    assert [r.time_s for r in repairs] == sorted(r.time_s for r in repairs)
+    np.testing.assert_allclose(repaired, truth, atol=2e-5)
+
+
+def test_clean_train_untouched() -> None:
+    truth = speed_ramp_pulses(50)
+    repaired, repairs = repair_pulse_times(truth)
+    assert repairs == ()
+    np.testing.assert_array_equal(repaired, truth)
+
+
+# --------------------------------------------------------------------------- analysis
+
+
+def test_speed_statistics_known_profile() -> None:
+    rev_periods = 60.0 / np.array([1000.0, 1010.0, 990.0, 1005.0] * 6)
+    rev_times = np.concatenate([[0.5], 0.5 + np.cumsum(rev_periods)])
+    # 4 equally spaced pulses per revolution.
+    pulses = np.interp(np.arange(4 * 24 + 1) / 4.0, np.arange(25), rev_times)
+    tach = analyze_tachometer(pulses, pulses_per_rev=4)
+    assert tach.whole_revolutions == 24
+    np.testing.assert_allclose(tach.rev_times_s, rev_times)
+    np.testing.assert_allclose(tach.rev_speed_rpm, 60.0 / rev_periods)
+    assert tach.min_rpm == pytest.approx(990.0)
+    assert tach.max_rpm == pytest.approx(1010.0)
+    assert tach.mean_rpm == pytest.approx(1001.25)
+    assert tach.speed_variation == pytest.approx(20.0 / 1001.25)
+    assert tach.repairs == ()
+
+
+def test_repairs_are_part_of_the_analysis() -> None:
+    truth = np.arange(41) * 0.06
+    tach = analyze_tachometer(np.delete(truth, 7), pulses_per_rev=1)
+    assert [r.kind for r in tach.repairs] == ["missing"]
+    assert tach.whole_revolutions == 40
+    assert tach.mean_rpm == pytest.approx(1000.0)
+
+
+@pytest.mark.parametrize("ppr", [1, 4])
+def test_exactly_min_revolutions_passes_one_less_is_refused(ppr: int) -> None:
+    pulses = np.arange(20 * ppr + 1) * 0.06 / ppr
+    assert analyze_tachometer(pulses, ppr).whole_revolutions == 20
+    with pytest.raises(TachometerError, match="only 19 whole revolutions"):
+        analyze_tachometer(pulses[:-1], ppr)
+    assert analyze_tachometer(pulses[: 5 * ppr + 1], ppr, min_revolutions=5).whole_revolutions == 5
+
+
+def test_speed_variation_refused_and_boundary() -> None:
+    speeds = np.linspace(1000.0, 1150.0, 30)  # run-up: (max - min)/mean = 150/1075
+    pulses = np.concatenate([[0.0], np.cumsum(60.0 / speeds)])
+    variation = 150.0 / np.mean(speeds)
+    with pytest.raises(TachometerError, match="speed varies too much"):
+        analyze_tachometer(pulses, 1)
+    assert analyze_tachometer(pulses, 1, max_speed_variation=variation + 1e-12).speed_variation == (
+        pytest.approx(variation)
+    )
+    with pytest.raises(TachometerError, match="speed varies"):
+        analyze_tachometer(pulses, 1, max_speed_variation=variation - 1e-9)
+
+
+def test_speed_range_refused() -> None:
+    pulses = np.arange(41) * 0.06  # 1000 rpm
+    with pytest.raises(TachometerError, match="outside the accepted range"):
+        analyze_tachometer(pulses, 1, min_speed_rpm=1200.0)
+    with pytest.raises(TachometerError, match="outside the accepted range"):
+        analyze_tachometer(pulses, 1, max_speed_rpm=900.0)
+    assert analyze_tachometer(pulses, 1, min_speed_rpm=999.0, max_speed_rpm=1001.0)
+
+
+@pytest.mark.parametrize(
+    ("pulses", "reason"),
+    [
+        (np.array([]), "no tachometer pulses"),
+        (np.array([0.1, 0.2]), "too few tachometer pulses"),
+        (np.array([0.1, 0.3, 0.2] + [0.4 + 0.1 * k for k in range(30)]), "not strictly increasing"),
+        (np.delete(np.arange(60) * 0.06, [20, 21, 22]), "irregular tachometer"),
+    ],
+)
+def test_refusals_have_one_line_reasons(pulses: np.ndarray, reason: str) -> None:
+    with pytest.raises(TachometerError, match=reason) as info:
+        analyze_tachometer(pulses, 1)
+    assert "\n" not in str(info.value)
+    assert isinstance(info.value, ValueError)
+
+
+def test_bad_pulses_per_rev() -> None:
+    with pytest.raises(TachometerError, match="pulses per revolution"):
+        analyze_tachometer(np.arange(30) * 0.1, 0)
