@@ -264,19 +264,31 @@ def _select_modes(roots: NDArray[np.complex128], n_modes: int) -> list[complex]:
     return selected
 
 
-def _mode_basis(poles: list[complex], n_samples: int) -> NDArray[np.float64]:
-    """Real regression columns: ``rⁿcos(θn), −rⁿsin(θn)`` per complex pole, ``zⁿ`` per real one."""
+def _mode_basis(
+    poles: list[complex], n_samples: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Real regression columns: ``rⁿcos(θn), −rⁿsin(θn)`` per complex pole, ``zⁿ`` per real one.
+
+    Columns of a growing pole (``r > 1``, a spurious or extraneous root) are divided by
+    ``r^(N−1)`` so they cannot overflow; the second array holds each column's divisor.
+    """
     n = np.arange(n_samples)
     columns: list[NDArray[np.float64]] = []
-    with np.errstate(under="ignore"):
+    divisors: list[float] = []
+    with np.errstate(under="ignore", over="ignore"):
         for pole in poles:
+            log_radius = float(np.log(max(abs(pole), np.finfo(np.float64).tiny)))
+            log_divisor = max(0.0, log_radius * (n_samples - 1))
+            decay = np.exp(log_radius * n - log_divisor)
+            divisor = float(np.exp(log_divisor))  # inf is harmless: the amplitude becomes 0
             if pole.imag == 0.0:
-                columns.append(np.power(pole.real, n))
+                columns.append(decay * np.where(pole.real < 0, (-1.0) ** n, 1.0))
+                divisors.append(divisor)
             else:
-                decay = np.power(abs(pole), n)
                 angle = np.angle(pole) * n
                 columns.extend([decay * np.cos(angle), -decay * np.sin(angle)])
-    return np.column_stack(columns)
+                divisors.extend([divisor, divisor])
+    return np.column_stack(columns), np.asarray(divisors)
 
 
 def _decay_nepers_per_sample(pole: complex) -> float:
@@ -346,8 +358,9 @@ def prony(
         samples_per_rev = _positive_int(samples_per_rev, "samples_per_rev")
 
     poles = _select_modes(_prony_roots(values, 2 * n_modes), n_modes)
-    basis = _mode_basis(poles, values.size)
+    basis, divisors = _mode_basis(poles, values.size)
     coefficients, *_ = np.linalg.lstsq(basis, values, rcond=None)
+    coefficients = coefficients / divisors
 
     modes: list[DampedMode] = []
     column = 0
