@@ -31,7 +31,7 @@ class TestCsvRoundTrip(RoundTripBase):
     supports_pulse_times = False
     atol = 0.0
     rtol = 0.0  # repr() of a float64 parses back exactly
-    memory_test_samples = 100_000
+    memory_test_samples = 50_000
 
     def write(self, path: Path, channels: dict[str, np.ndarray], sample_rate_hz: float | None) -> None:
         path.write_text(csv_text(channels), encoding="utf-8")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,9 +20,11 @@ class TestNpzRoundTrip(RoundTripBase):
     rtol = 0.0
 
     def write(self, path: Path, channels: dict[str, np.ndarray], sample_rate_hz: float | None) -> None:
-        extra = {} if sample_rate_hz is None else {"sample_rate_hz": np.float64(sample_rate_hz)}
+        arrays: dict[str, Any] = dict(channels)
+        if sample_rate_hz is not None:
+            arrays["sample_rate_hz"] = np.float64(sample_rate_hz)
         with open(path, "wb") as stream:
-            np.savez(stream, **channels, **extra)
+            np.savez(stream, **arrays)
 
     def test_uncompressed_members_are_memory_maps(self, tmp_path: Path) -> None:
         written = self.signals()
@@ -35,9 +38,11 @@ class TestNpzCompressedRoundTrip(TestNpzRoundTrip):
     memory_mapped = False
 
     def write(self, path: Path, channels: dict[str, np.ndarray], sample_rate_hz: float | None) -> None:
-        extra = {} if sample_rate_hz is None else {"fs": np.float64(sample_rate_hz)}
+        arrays: dict[str, Any] = dict(channels)
+        if sample_rate_hz is not None:
+            arrays["fs"] = np.float64(sample_rate_hz)
         with open(path, "wb") as stream:
-            np.savez_compressed(stream, **channels, **extra)
+            np.savez_compressed(stream, **arrays)
 
     def test_uncompressed_members_are_memory_maps(self, tmp_path: Path) -> None:
         pytest.skip("compressed members are decompressed")
@@ -50,10 +55,11 @@ class TestNpzFloat32ColumnVectors(TestNpzRoundTrip):
     rtol = 1e-6
 
     def write(self, path: Path, channels: dict[str, np.ndarray], sample_rate_hz: float | None) -> None:
-        arrays = {k: v.astype(np.float32).reshape(-1, 1) for k, v in channels.items()}
-        extra = {} if sample_rate_hz is None else {"sample_rate_hz": np.float64(sample_rate_hz)}
+        arrays: dict[str, Any] = {k: v.astype(np.float32).reshape(-1, 1) for k, v in channels.items()}
+        if sample_rate_hz is not None:
+            arrays["sample_rate_hz"] = np.float64(sample_rate_hz)
         with open(path, "wb") as stream:
-            np.savez(stream, **arrays, **extra)
+            np.savez(stream, **arrays)
 
 
 def test_object_arrays_are_refused(tmp_path: Path) -> None:
