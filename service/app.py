@@ -73,7 +73,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.metrics = RequestMetrics()
     install_error_handlers(app)
-    app.middleware("http")(metrics_middleware(app.state.metrics, app))
+    app.middleware("http")(metrics_middleware(app.state.metrics))
     for router in routers.ALL:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")

@@ -15,8 +15,6 @@ from collections.abc import Awaitable, Callable, Iterable
 
 from starlette.requests import Request
 from starlette.responses import Response
-from starlette.routing import Match
-from starlette.types import ASGIApp
 
 DURATION_BUCKETS_S = (0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0)
 
@@ -101,17 +99,17 @@ def gauge_lines(name: str, help_text: str, samples: Iterable[tuple[dict[str, str
     return "\n".join(lines) + "\n"
 
 
-def route_template(app: ASGIApp, request: Request) -> str:
-    """The matched route's path template (``/api/v1/rigs/{rig_id}``), or ``unmatched``."""
-    for route in getattr(app, "routes", ()):
-        match, _ = route.matches(request.scope)
-        if match == Match.FULL:
-            return str(getattr(route, "path", "unmatched"))
-    return "unmatched"
+def route_template(request: Request) -> str:
+    """The matched route's path template (``/api/v1/rigs/{rig_id}``), or ``unmatched``.
+
+    Starlette's router leaves the matched route in ``scope["route"]``.
+    """
+    route = request.scope.get("route")
+    return str(getattr(route, "path", "unmatched")) if route is not None else "unmatched"
 
 
 def metrics_middleware(
-    metrics: RequestMetrics, app: ASGIApp
+    metrics: RequestMetrics,
 ) -> Callable[[Request, Callable[[Request], Awaitable[Response]]], Awaitable[Response]]:
     """An HTTP middleware function that records every request into ``metrics``."""
 
@@ -127,7 +125,7 @@ def metrics_middleware(
         finally:
             metrics.observe(
                 request.method,
-                route_template(app, request),
+                route_template(request),
                 status,
                 time.perf_counter() - started,
             )

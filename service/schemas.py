@@ -7,9 +7,9 @@ bodies), a campaign by its manifest ``id``; records, results and alarms by integ
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, AwareDatetime, BaseModel, ConfigDict, Field, model_validator
 
 from gearwatch.results import METRIC_NAMES, TOOTH_INDICATORS
 
@@ -27,6 +27,24 @@ assert set(ToothIndicatorName.__args__) == set(TOOTH_INDICATORS)  # type: ignore
 assert set(AlarmIndicatorName.__args__) == set(TOOTH_INDICATORS) | set(METRIC_NAMES)  # type: ignore[attr-defined]
 
 TIMESTAMP_EXAMPLE = "2026-03-02T08:00:00Z"
+
+NO_CONTROL_CHARACTERS = r"^[^\x00-\x1f\x7f]*$"
+"""Names and comments are printable text (PostgreSQL refuses NUL in text)."""
+NAME_PATTERN = r"^[^\x00-\x1f\x7f/]+$"
+
+
+def _to_utc(value: dt.datetime) -> dt.datetime:
+    try:
+        utc = value.astimezone(dt.UTC)
+    except OverflowError:
+        raise ValueError("timestamp out of range") from None
+    if not 1900 <= utc.year <= 9000:
+        raise ValueError("timestamp out of range (years 1900 to 9000)")
+    return utc
+
+
+UtcDatetime = Annotated[AwareDatetime, AfterValidator(_to_utc)]
+"""An ISO 8601 timestamp WITH a time zone, converted to UTC."""
 
 
 class ErrorDetail(BaseModel):
@@ -56,7 +74,9 @@ class Me(BaseModel):
 class ApiKeyCreate(BaseModel):
     model_config = ConfigDict(extra="forbid")
     role: Role = Field(examples=["operator"])
-    name: str = Field(default="", max_length=200, examples=["rig hall PC"])
+    name: str = Field(
+        default="", max_length=200, pattern=NO_CONTROL_CHARACTERS, examples=["rig hall PC"]
+    )
 
 
 class ApiKeyOut(BaseModel):
@@ -116,14 +136,17 @@ class RecordEntryIn(BaseModel):
     """The manifest entry of an uploaded record (``[[records]]`` in ``campaign.toml``)."""
 
     model_config = ConfigDict(extra="forbid")
-    taken_at: dt.datetime = Field(
+    taken_at: UtcDatetime = Field(
         description="When the record was taken (ISO 8601 with a time zone).",
         examples=[TIMESTAMP_EXAMPLE],
     )
-    label: str = Field(default="", max_length=200, examples=["day 3"])
+    label: str = Field(
+        default="", max_length=200, pattern=NO_CONTROL_CHARACTERS, examples=["day 3"]
+    )
     file: str | None = Field(
         default=None,
         max_length=500,
+        pattern=NAME_PATTERN,
         description="File name as written in the manifest (default: the uploaded file's name).",
         examples=["day03.csv.gz"],
     )
@@ -194,22 +217,50 @@ class RecordDetail(RecordOut):
     current_result: ResultOut | None = None
 
 
-class ReprocessIn(BaseModel):
-    """New analysis parameters; omitted ones keep their defaults (``AnalysisParameters``)."""
+class AnalysisParametersIn(BaseModel):
+    """Analysis parameters (``gearwatch.results.AnalysisParameters``); omitted ones keep their
+    defaults. Bounds keep the analysis meaningful; anything outside is a 422."""
 
     model_config = ConfigDict(extra="forbid")
-    parameters: dict[str, Any] = Field(
-        default_factory=dict,
+    samples_per_mesh: int = Field(default=64, ge=8, le=1024, examples=[32])
+    samples_per_rev_without_teeth: int = Field(default=1024, ge=64, le=65536)
+    mci_form: Literal["robust", "literal"] = "robust"
+    mci_window_samples: int | None = Field(default=None, ge=2, le=65536)
+    mci_median_width: int | None = Field(default=None, ge=1, le=131071)
+    max_speed_variation: float = Field(default=0.10, gt=0, le=10)
+    min_revolutions: int = Field(default=20, ge=2, le=1_000_000)
+    min_speed_rpm: float = Field(default=1.0, gt=0, le=1e6)
+    max_speed_rpm: float = Field(default=100_000.0, gt=0, le=1e7)
+    difference_sidebands: int = Field(default=1, ge=0, le=50)
+
+    @model_validator(mode="after")
+    def _speed_range(self) -> AnalysisParametersIn:
+        if self.min_speed_rpm >= self.max_speed_rpm:
+            raise ValueError("min_speed_rpm must be below max_speed_rpm")
+        return self
+
+
+class ReprocessIn(BaseModel):
+    """Re-analyse a record's kept raw file with new parameters (a new result version)."""
+
+    model_config = ConfigDict(extra="forbid")
+    parameters: AnalysisParametersIn = Field(
+        default_factory=AnalysisParametersIn,
         examples=[{"samples_per_mesh": 32, "mci_form": "literal"}],
     )
 
 
-class UploadOut(BaseModel):
+class JobOut(BaseModel):
+    """What a per-record job did."""
+
     record: RecordOut
-    outcome: Literal["processed", "duplicate", "queued", "rejected"] = Field(
-        description="processed: analysed now; duplicate: the same file was already ingested; "
-        "queued: sent to the workers; rejected: kept but failed the checks (see reason).",
+    outcome: Literal["accepted", "rejected", "unchanged", "reprocessed"] = Field(
+        description="accepted: analysed and stored; rejected: kept but failed the checks "
+        "(see record.reason); unchanged: this file (and these parameters) were already "
+        "processed; reprocessed: a new result version was added.",
     )
+    result_id: int | None = None
+    alarm_changes: int = Field(default=0, description="Alarm state changes this record caused.")
 
 
 class ToothSector(BaseModel):
@@ -233,7 +284,9 @@ class CurvesOut(BaseModel):
     samples_per_rev: int
     pinion_teeth: int | None
     tooth1_pitch_angle_deg: float
-    curves: dict[str, list[float]]
+    curves: dict[str, list[float | None]] = Field(
+        description="float32 values; NaN travels as null."
+    )
     sectors: list[ToothSector] = Field(
         default_factory=list, description="Pinion tooth sectors along the angle axis."
     )
@@ -298,7 +351,12 @@ class AlarmList(BaseModel):
 
 class AckIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
-    comment: str = Field(default="", max_length=2000, examples=["inspected: pitting on tooth 7"])
+    comment: str = Field(
+        default="",
+        max_length=2000,
+        pattern=r"^[^\x00]*$",
+        examples=["inspected: pitting on tooth 7"],
+    )
 
 
 class AlarmRuleIn(BaseModel):
@@ -313,8 +371,21 @@ class AlarmRuleIn(BaseModel):
     persistence: int = Field(default=3, ge=1, le=1000, examples=[3])
     enabled: bool = True
 
+    @model_validator(mode="after")
+    def _levels_in_order(self) -> AlarmRuleIn:
+        if not self.clear_level < self.warning_level <= self.alarm_level:
+            raise ValueError("levels must satisfy clear_level < warning_level <= alarm_level")
+        return self
 
-class AlarmRuleOut(AlarmRuleIn):
+
+class AlarmRuleOut(BaseModel):
+    indicator: str = Field(examples=["mci_depth"])
+    baseline_records: int
+    warning_level: float
+    alarm_level: float
+    clear_level: float
+    persistence: int
+    enabled: bool
     updated_at: dt.datetime | None = None
 
 

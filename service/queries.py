@@ -1,0 +1,79 @@
+"""Derived views the service computes from repository data (no SQL of its own)."""
+
+from __future__ import annotations
+
+import numpy as np
+from sqlalchemy.orm import Session
+
+from service import schemas
+
+BAND_HALF_WIDTH_SIGMAS = 3.0
+"""The band is centre ± 3 robust standard deviations (1.4826·MAD)."""
+MIN_BAND_RECORDS = 3
+"""Fewer baseline records than this give no band (a median of two is no baseline)."""
+DEFAULT_BASELINE_RECORDS = 10
+
+
+def tooth_sectors(
+    pinion_teeth: int | None, tooth1_pitch_angle_deg: float
+) -> list[schemas.ToothSector]:
+    """Every pinion tooth's sector (pitch angle ± half a pitch) along 0–360°.
+
+    Tooth ``k`` passes the pitch point at ``tooth1 + (k − 1)·360/Z`` degrees (as in
+    :mod:`dsp.teeth`); a sector that straddles 0° is given as two pieces.
+    """
+    if not pinion_teeth:
+        return []
+    pitch_deg = 360.0 / pinion_teeth
+    sectors: list[schemas.ToothSector] = []
+    for tooth in range(1, pinion_teeth + 1):
+        centre = (tooth1_pitch_angle_deg + (tooth - 1) * pitch_deg) % 360.0
+        start, end = centre - pitch_deg / 2, centre + pitch_deg / 2
+        if start < 0:
+            sectors.append(schemas.ToothSector(tooth=tooth, start_deg=start + 360.0, end_deg=360.0))
+            start = 0.0
+        if end > 360.0:
+            sectors.append(schemas.ToothSector(tooth=tooth, start_deg=0.0, end_deg=end - 360.0))
+            end = 360.0
+        sectors.append(schemas.ToothSector(tooth=tooth, start_deg=start, end_deg=end))
+    return sorted(sectors, key=lambda s: s.start_deg)
+
+
+def robust_band(curves: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pointwise median ± 3·1.4826·MAD over the first axis of a (records, samples) array."""
+    centre = np.median(curves, axis=0)
+    spread = 1.4826 * np.median(np.abs(curves - centre), axis=0)
+    return centre - BAND_HALF_WIDTH_SIGMAS * spread, centre + BAND_HALF_WIDTH_SIGMAS * spread
+
+
+def mci_baseline_band(session: Session, rig_pk: int, channel: str) -> schemas.BaselineBand | None:
+    """The MCI band of a rig's channel over its first accepted records (current results).
+
+    Only curves of the most common length take part (a re-analysis with other samples per
+    revolution changes the length). ``None`` with fewer than :data:`MIN_BAND_RECORDS`.
+    """
+    from storage.repositories import AlarmRuleRepository, RecordRepository
+
+    rule = AlarmRuleRepository(session).get_for(rig_pk, "mci_depth")
+    count = rule.baseline_records if rule is not None else DEFAULT_BASELINE_RECORDS
+    records = RecordRepository(session)
+    curves: list[np.ndarray] = []
+    for record in records.list(rig_id=rig_pk, status="accepted", limit=count):
+        result = records.current_result(record.id)
+        if result is None:
+            continue
+        found = records.curves(result.id, channel=channel, names=["mci"])
+        if found:
+            curves.append(found[0].values.astype(np.float64))
+    if not curves:
+        return None
+    lengths = [len(c) for c in curves]
+    common = max(set(lengths), key=lengths.count)
+    stack = np.stack([c for c in curves if len(c) == common])
+    stack = stack[np.all(np.isfinite(stack), axis=1)]
+    if len(stack) < MIN_BAND_RECORDS:
+        return None
+    lower, upper = robust_band(stack)
+    return schemas.BaselineBand(
+        lower=[float(v) for v in lower], upper=[float(v) for v in upper], records=len(stack)
+    )

@@ -1,0 +1,17 @@
+"""The API's routers, in the order they appear in the OpenAPI document."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from service.routers import admin, alarms, campaigns, dashboard, health, records, rigs
+
+ALL: tuple[APIRouter, ...] = (
+    health.router,
+    rigs.router,
+    campaigns.router,
+    records.router,
+    alarms.router,
+    admin.router,
+    dashboard.router,
+)

@@ -1,0 +1,306 @@
+"""Records: upload (multipart) into a campaign, list, details, result versions, re-process,
+curves with tooth sectors and the baseline band."""
+
+from __future__ import annotations
+
+import re
+import tempfile
+from pathlib import Path
+from typing import Annotated
+
+from fastapi import APIRouter, File, Form, Query, Response, UploadFile
+from pydantic import ValidationError
+from sqlalchemy.orm import Session
+
+from gearwatch.errors import GearwatchError, InputError, NotFound
+from service import schemas
+from service.convert import (
+    Names,
+    campaign_by_name,
+    finite_list,
+    record_out,
+    result_out,
+    rig_by_name,
+)
+from service.deps import CurrentKey, DbSession, OperatorKey, SettingsDep
+from service.routers.common import CampaignName, Limit, Offset, RecordId, RigFilter, errors
+from service.settings import Settings
+
+router = APIRouter(prefix="/api/v1", tags=["records"])
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+-]")
+
+
+class PayloadTooLarge(GearwatchError):
+    http_status = 413
+    code = "payload_too_large"
+
+
+def _job_out(db: Session, job: object) -> schemas.JobOut:
+    from gearwatch.jobs import JobResult
+    from storage.repositories import RecordRepository
+
+    assert isinstance(job, JobResult)
+    record = RecordRepository(db).get(job.record_id)
+    return schemas.JobOut(
+        record=record_out(record, Names(db)),
+        outcome=job.outcome,
+        result_id=job.result_id,
+        alarm_changes=len(job.alarm_changes),
+    )
+
+
+@router.get(
+    "/records",
+    response_model=schemas.RecordList,
+    summary="List records, oldest first",
+    responses=errors(401, 404, 422),
+)
+def list_records(
+    db: DbSession,
+    _caller: CurrentKey,
+    rig_id: RigFilter = None,
+    campaign_id: Annotated[
+        str | None, Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN)
+    ] = None,
+    status: schemas.RecordStatus | None = None,
+    since: Annotated[
+        schemas.UtcDatetime | None, Query(description="taken_at ≥ since (with time zone)")
+    ] = None,
+    until: Annotated[
+        schemas.UtcDatetime | None, Query(description="taken_at < until (with time zone)")
+    ] = None,
+    limit: Limit = 100,
+    offset: Offset = 0,
+) -> schemas.RecordList:
+    from storage.repositories import RecordRepository
+
+    filters = {
+        "rig_id": None if rig_id is None else rig_by_name(db, rig_id).id,
+        "campaign_id": None if campaign_id is None else campaign_by_name(db, campaign_id).id,
+        "status": status,
+        "since": since,
+        "until": until,
+    }
+    records = RecordRepository(db)
+    names = Names(db)
+    rows = records.list(**filters, limit=limit, offset=offset)  # type: ignore[arg-type]
+    return schemas.RecordList(
+        items=[record_out(r, names) for r in rows],
+        total=records.count(**filters),  # type: ignore[arg-type]
+        limit=limit,
+        offset=offset,
+    )
+
+
+@router.post(
+    "/campaigns/{campaign_id}/records",
+    response_model=schemas.JobOut,
+    status_code=201,
+    summary="Upload a record file with its manifest entry (operator)",
+    description="Multipart form: `file` (the record, in any format the readers know: .wav, "
+    ".csv, .csv.gz, .npz, .h5, .tdms, .mat, …) and `entry`, the record's manifest entry as "
+    'JSON (`{"taken_at": "2026-03-02T08:00:00Z", "label": "day 2"}`). The raw file is kept '
+    "first, then analysed; a file that fails the quality checks is stored as `rejected` "
+    "with its reason (still 201). The same file again changes nothing (200, `unchanged`).",
+    responses={
+        200: {"model": schemas.JobOut, "description": "Already ingested"},
+        **errors(401, 403, 404, 413, 422),
+    },
+)
+def upload_record(
+    campaign_id: CampaignName,
+    file: Annotated[UploadFile, File(description="The record file.")],
+    entry: Annotated[
+        str,
+        Form(
+            description="The manifest entry as JSON: taken_at (ISO 8601 with time zone), "
+            "optional label and file.",
+            examples=['{"taken_at": "2026-03-02T08:00:00Z", "label": "day 2"}'],
+        ),
+    ],
+    response: Response,
+    db: DbSession,
+    settings: SettingsDep,
+    caller: OperatorKey,
+) -> schemas.JobOut:
+    from gearwatch.jobs import campaign_config, process_file
+    from storage.raw_store import RawStore
+    from storage.repositories import AuditRepository
+
+    try:
+        record_entry = schemas.RecordEntryIn.model_validate_json(entry)
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(p) for p in first.get("loc", ())) or "entry"
+        raise InputError(f"entry: {where}: {first.get('msg', 'invalid')}") from None
+    stored = campaign_by_name(db, campaign_id)
+    file_name = record_entry.file or Path(file.filename or "").name or "record"
+    with tempfile.TemporaryDirectory(dir=settings.upload_dir) as folder:
+        spooled = Path(folder) / (_UNSAFE.sub("_", Path(file_name).name) or "record")
+        _spool(file, spooled, settings)
+        job = process_file(
+            db,
+            spooled,
+            campaign_config(stored),
+            raw_store=RawStore(settings.raw_store),
+            taken_at=record_entry.taken_at,
+            label=record_entry.label,
+            file_name=file_name,
+        )
+    AuditRepository(db).add(
+        who=caller.who,
+        action="record.upload",
+        target=f"record:{job.record_id}",
+        details={"campaign": stored.name, "file": file_name, "outcome": job.outcome},
+    )
+    db.commit()
+    if job.outcome in ("unchanged", "reprocessed"):
+        response.status_code = 200
+    return _job_out(db, job)
+
+
+def _spool(upload: UploadFile, target: Path, settings: Settings) -> None:
+    """Copy the upload to ``target``, refusing more than ``settings.max_upload_bytes``."""
+    size = 0
+    with open(target, "wb") as out:
+        while chunk := upload.file.read(1 << 20):
+            size += len(chunk)
+            if size > settings.max_upload_bytes:
+                raise PayloadTooLarge(
+                    f"the file is larger than the limit of {settings.max_upload_bytes} bytes"
+                )
+            out.write(chunk)
+    if size == 0:
+        raise InputError("the uploaded file is empty")
+
+
+@router.get(
+    "/records/{record_id}",
+    response_model=schemas.RecordDetail,
+    summary="One record with its current result",
+    responses=errors(401, 404, 422),
+)
+def get_record(record_id: RecordId, db: DbSession, _caller: CurrentKey) -> schemas.RecordDetail:
+    from storage.repositories import RecordRepository
+
+    records = RecordRepository(db)
+    record = records.get(record_id)
+    current = records.current_result(record.id)
+    base = record_out(record, Names(db))
+    return schemas.RecordDetail(
+        **base.model_dump(),
+        quality=record.quality or {},
+        current_result=None if current is None else result_out(db, current, details=True),
+    )
+
+
+@router.get(
+    "/records/{record_id}/results",
+    response_model=schemas.ResultList,
+    summary="Every result version of a record, oldest first",
+    responses=errors(401, 404, 422),
+)
+def list_results(record_id: RecordId, db: DbSession, _caller: CurrentKey) -> schemas.ResultList:
+    from storage.repositories import RecordRepository
+
+    records = RecordRepository(db)
+    records.get(record_id)
+    return schemas.ResultList(
+        items=[result_out(db, r, details=True) for r in records.results(record_id)]
+    )
+
+
+@router.post(
+    "/records/{record_id}/reprocess",
+    response_model=schemas.JobOut,
+    summary="Analyse a record again with new parameters (operator)",
+    description="Reads the kept raw file again. New parameters add a result version (the old "
+    "ones are kept, the new one becomes current); the same parameters change nothing.",
+    responses=errors(401, 403, 404, 422),
+)
+def reprocess(
+    record_id: RecordId,
+    body: schemas.ReprocessIn,
+    db: DbSession,
+    caller: OperatorKey,
+) -> schemas.JobOut:
+    from gearwatch.jobs import reprocess_record
+    from gearwatch.results import AnalysisParameters
+    from storage.repositories import AuditRepository, RecordRepository
+
+    RecordRepository(db).get(record_id)
+    params = AnalysisParameters.from_dict(body.parameters.model_dump())
+    job = reprocess_record(db, record_id, params)
+    AuditRepository(db).add(
+        who=caller.who,
+        action="record.reprocess",
+        target=f"record:{record_id}",
+        details={"parameters": params.to_dict(), "outcome": job.outcome},
+    )
+    db.commit()
+    return _job_out(db, job)
+
+
+@router.get(
+    "/records/{record_id}/curves",
+    response_model=schemas.CurvesOut,
+    summary="Curves of a record (one channel), with tooth sectors and the MCI baseline band",
+    description="Curves are over one pinion revolution, sample `i` at `360·i/n` degrees after "
+    "the tach reference edge. `band=true` adds the MCI baseline band: pointwise median ± "
+    "3·1.4826·MAD of the `mci` curve over the rig's first accepted records (as many as the "
+    "rig's `mci_depth` rule learns its baseline from, default 10).",
+    responses=errors(401, 404, 422),
+)
+def curves(
+    record_id: RecordId,
+    db: DbSession,
+    _caller: CurrentKey,
+    names: Annotated[
+        list[schemas.CurveName] | None, Query(description="Curves to return (default all).")
+    ] = None,
+    channel: Annotated[
+        str | None, Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN)
+    ] = None,
+    result_id: Annotated[
+        int | None, Query(ge=1, le=2**31 - 1, description="A result version (default current).")
+    ] = None,
+    band: Annotated[bool, Query(description="Add the MCI baseline band.")] = False,
+) -> schemas.CurvesOut:
+    from service.queries import mci_baseline_band, tooth_sectors
+    from storage.repositories import RecordRepository, RigRepository
+
+    records = RecordRepository(db)
+    record = records.get(record_id)
+    if result_id is None:
+        result = records.current_result(record.id)
+        if result is None:
+            raise NotFound(f"record {record_id} has no result ({record.status})")
+    else:
+        result = records.get_result(result_id)
+        if result.record_id != record.id:
+            raise NotFound(f"result version {result_id} is not a result of record {record_id}")
+    channel_results = records.channel_results(result.id)
+    if not channel_results:
+        raise NotFound(f"result version {result.id} has no channel")
+    if channel is None:
+        channel = channel_results[0].channel.name
+    elif channel not in {c.channel.name for c in channel_results}:
+        raise NotFound(f"record {record_id} has no channel {channel!r}")
+    samples_per_rev = next(c for c in channel_results if c.channel.name == channel).samples_per_rev
+    data = {
+        c.name: finite_list(c.values)
+        for c in records.curves(result.id, channel=channel, names=names)
+    }
+    rig = RigRepository(db).get(record.rig_id)
+    return schemas.CurvesOut(
+        record_id=record.id,
+        result_id=result.id,
+        channel=channel,
+        samples_per_rev=samples_per_rev,
+        pinion_teeth=rig.pinion_teeth,
+        tooth1_pitch_angle_deg=rig.tooth1_pitch_angle_deg,
+        curves=data,
+        sectors=tooth_sectors(rig.pinion_teeth, rig.tooth1_pitch_angle_deg),
+        baseline_band=mci_baseline_band(db, rig.id, channel) if band else None,
+    )

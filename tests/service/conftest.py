@@ -1,0 +1,91 @@
+"""Service test fixtures: the app on SQLite AND PostgreSQL, API keys of every role, seed data.
+
+The database fixtures (``db_url``: a migrated SQLite temp file and a throw-away PostgreSQL
+schema per session) come from :mod:`tests.storage.dbfixtures`; every test that uses ``api``
+runs once per backend, on emptied tables.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+import sqlalchemy as sa
+from fastapi import FastAPI
+from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session, sessionmaker
+
+from tests.storage.dbfixtures import (  # noqa: F401
+    _postgres_schema,
+    db_engine_migrated,
+    db_url,
+    delete_all_rows,
+)
+
+ROLES = ("viewer", "operator", "admin")
+
+
+@dataclass
+class Api:
+    """A test client with one key per role and a session factory on the same database."""
+
+    app: FastAPI
+    client: TestClient
+    keys: dict[str, str]
+    session_factory: sessionmaker[Session]
+    raw_store: Path
+    backend: str
+
+    def headers(self, role: str | None) -> dict[str, str]:
+        return {} if role is None else {"Authorization": f"Bearer {self.keys[role]}"}
+
+    def get(self, path: str, role: str | None = "viewer", **kwargs: Any) -> httpx.Response:
+        return self.client.get(path, headers=self.headers(role), **kwargs)
+
+    def session(self) -> Session:
+        return self.session_factory()
+
+
+@pytest.fixture(scope="session")
+def service_app(
+    db_url: str,  # noqa: F811
+    db_engine_migrated: sa.Engine,  # noqa: F811
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Iterator[tuple[FastAPI, TestClient, Path]]:
+    """One app per backend and session (the schema is already at the alembic head)."""
+    from service.app import create_app
+    from service.settings import Settings
+
+    raw_store = tmp_path_factory.mktemp("raw-store")
+    settings = Settings(
+        database_url=db_url,
+        raw_store=raw_store,
+        auto_migrate=False,
+        upload_dir=tmp_path_factory.mktemp("uploads"),
+    )
+    app = create_app(settings)
+    with TestClient(app, raise_server_exceptions=False) as client:
+        yield app, client, raw_store
+
+
+@pytest.fixture
+def api(
+    service_app: tuple[FastAPI, TestClient, Path],
+    db_engine_migrated: sa.Engine,  # noqa: F811
+) -> Iterator[Api]:
+    """Empty tables, a fresh key per role."""
+    from storage.db import session_factory, session_scope
+    from storage.repositories import ApiKeyRepository
+
+    app, client, raw_store = service_app
+    delete_all_rows(db_engine_migrated)
+    factory = session_factory(db_engine_migrated)
+    keys: dict[str, str] = {}
+    with session_scope(factory) as session:
+        for role in ROLES:
+            keys[role] = ApiKeyRepository(session).create(name=f"{role} key", role=role)[1]
+    yield Api(app, client, keys, factory, raw_store, db_engine_migrated.dialect.name)
