@@ -9,6 +9,7 @@ longer log.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -58,8 +59,22 @@ def write_can_log(path: str | Path, messages: Iterable[can.Message]) -> Path:
         writer = can.CanutilsLogWriter(path, channel="can0")
     with writer:
         for msg in messages:
-            writer.on_message_received(msg)
+            writer.on_message_received(_loggable(msg))
     return path
+
+
+def _loggable(msg: can.Message) -> can.Message:
+    """The frame, with a bus channel name the writers cannot store as a number removed.
+
+    BLF and ASC store the channel as a small integer taken from the trailing digits of
+    the name: a virtual bus called ``rig-20250101`` would overflow it.
+    """
+    channel = can.util.channel2int(msg.channel)
+    if msg.channel is None or (channel is not None and 0 <= channel <= 255):
+        return msg
+    copied = copy.copy(msg)
+    copied.channel = None
+    return copied
 
 
 def read_can_log_records(path: str | Path, *, keep_raw_frames: bool = False) -> list[AssembledRecord]:

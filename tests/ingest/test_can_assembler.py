@@ -12,7 +12,7 @@ import numpy as np
 from ingest.can import protocol as p
 from ingest.can.assembler import AssembledRecord, RecordAssembler
 from ingest.can.emulator import record_frames
-from ingest.can.logs import iter_can_log
+from ingest.can.logs import iter_can_log, write_can_log
 from ingest.types import RecordData
 
 FS_HZ = 20_000.0
@@ -294,3 +294,14 @@ def test_raw_frames_can_be_kept_for_accepted_records_or_never() -> None:
     assert kept.raw_frames == frames
     (lean,) = assemble(frames[:20] + frames[21:], keep_raw_frames=False)
     assert lean.status == "rejected" and lean.raw_frames == []
+
+
+def test_frames_from_a_bus_whose_name_ends_in_digits_can_be_logged(tmp_path: Path) -> None:
+    """python-can's BLF/ASC writers take the channel number from the name's trailing digits."""
+    frames = frames_of(make_record(600))
+    for msg in frames:
+        msg.channel = "rig-20250101123456"
+    for suffix in (".blf", ".asc", ".log"):
+        back = list(iter_can_log(write_can_log(tmp_path / f"r{suffix}", frames)))
+        assert [bytes(m.data) for m in back] == [bytes(m.data) for m in frames]
+    assert frames[0].channel == "rig-20250101123456"  # the caller's frames are untouched

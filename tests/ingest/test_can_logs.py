@@ -104,9 +104,9 @@ def protocol_frames(
             counts[x == np.inf] = 32767
             counts[x == -np.inf] = -32767
             for sequence, start in enumerate(range(0, len(x), 30)):
-                chunk = counts[start : start + 30]
-                signals = {"Sequence": sequence % 65536, "ChannelId": channel_id, "SampleCount": len(chunk)}
-                signals.update({f"Sample{k:02d}": int(chunk[k]) if k < len(chunk) else 0 for k in range(30)})
+                block = counts[start : start + 30]
+                signals = {"Sequence": sequence % 65536, "ChannelId": channel_id, "SampleCount": len(block)}
+                signals.update({f"Sample{k:02d}": int(block[k]) if k < len(block) else 0 for k in range(30)})
                 data_frames.append(("SampleBlock", signals))
                 blocks += 1
             samples += len(x)
