@@ -1,0 +1,232 @@
+"""The per-record job on SQLite and PostgreSQL: keep raw → read → analyse → store → alarms."""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+
+import pytest
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from gearwatch.jobs import parse_taken_at, process_file, record_suffix, reprocess_record
+from gearwatch.results import AnalysisParameters
+from storage.models import Base
+from storage.raw_store import RawStore
+from storage.repositories import (
+    AlarmRepository,
+    AlarmRuleRepository,
+    RecordRepository,
+    TrendRepository,
+)
+from tests.gearwatch.jobfixtures import FakeAnalyzer, make_campaign, write_record
+from tests.storage.dbfixtures import (  # noqa: F401
+    _postgres_schema,
+    db_engine,
+    db_engine_migrated,
+    db_session,
+    db_url,
+)
+from tests.storage.factories import T0
+
+
+def row_counts(session: Session) -> dict[str, int]:
+    return {
+        table.name: int(session.execute(sa.select(sa.func.count()).select_from(table)).scalar())
+        for table in Base.metadata.sorted_tables
+    }
+
+
+@pytest.fixture
+def store(tmp_path) -> RawStore:
+    return RawStore(tmp_path / "raw-store")
+
+
+def test_accepted_record_keeps_raw_file_and_stores_results(db_session, store, tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0])
+    path = campaign.record_path(campaign.records[0])
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    analyzer = FakeAnalyzer()
+    result = process_file(db_session, path, campaign, raw_store=store, analyzer=analyzer)
+    db_session.commit()
+    assert (result.outcome, result.status, result.sha256) == ("accepted", "accepted", digest)
+    kept = store.root / digest[:2] / f"{digest}.wav"
+    assert kept.read_bytes() == path.read_bytes()
+    # The chain read the kept copy, not the original.
+    assert analyzer.calls[0]["source"] == str(kept) and analyzer.calls[0]["sha256"] == digest
+    record = RecordRepository(db_session).get(result.record_id)
+    assert record.raw_location == str(kept) and record.file_name == "day00.wav"
+    assert record.taken_at == T0 and record.label == "day 0" and record.size_bytes > 0
+    assert record.revolutions == 40 and record.quality["speed_min_rpm"] == 1490.0
+    trend = TrendRepository(db_session).trend(record.rig_id, "mci_depth", tooth=1)
+    assert [p.value for p in trend] == [pytest.approx(1.0, abs=1e-3)]
+    # A new rig gets the default alarm rules.
+    assert {r.indicator for r in AlarmRuleRepository(db_session).list(record.rig_id)} == {
+        "mci_depth", "kurtosis"}
+
+
+def test_ingesting_the_same_file_again_changes_nothing(db_session, store, tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0, 1.0], flat=(1,))
+    analyzer = FakeAnalyzer()
+    for entry in campaign.records:
+        process_file(db_session, campaign.record_path(entry), campaign, raw_store=store,
+                     analyzer=analyzer)
+    db_session.commit()
+    before = row_counts(db_session)
+    calls = len(analyzer.calls)
+    again = [
+        process_file(db_session, campaign.record_path(e), campaign, raw_store=store,
+                     analyzer=analyzer)
+        for e in campaign.records
+    ]
+    db_session.commit()
+    assert [r.outcome for r in again] == ["unchanged", "unchanged"]
+    assert [r.status for r in again] == ["accepted", "rejected"]
+    assert row_counts(db_session) == before
+    assert len(analyzer.calls) == calls  # not even analysed again
+
+
+def test_new_parameters_add_a_result_version_and_keep_the_old(db_session, store,
+                                                               tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0])
+    path = campaign.record_path(campaign.records[0])
+    first = process_file(db_session, path, campaign, raw_store=store, analyzer=FakeAnalyzer())
+    literal = AnalysisParameters(mci_form="literal")
+    second = process_file(db_session, path, campaign, raw_store=store, params=literal,
+                          analyzer=FakeAnalyzer())
+    third = process_file(db_session, path, campaign, raw_store=store, params=literal,
+                         analyzer=FakeAnalyzer())
+    db_session.commit()
+    assert (second.outcome, third.outcome) == ("reprocessed", "unchanged")
+    versions = RecordRepository(db_session).results(first.record_id)
+    assert [v.parameters["mci_form"] for v in versions] == ["robust", "literal"]
+    assert [v.is_current for v in versions] == [False, True]
+    assert second.result_id == versions[1].id and second.alarm_changes == ()
+
+
+def test_bad_input_is_stored_rejected_and_the_job_goes_on(db_session, store, tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0, 1.0, 1.0], flat=(1,), truncated=(0,))
+    results = [
+        process_file(db_session, campaign.record_path(e), campaign, raw_store=store,
+                     analyzer=FakeAnalyzer())
+        for e in campaign.records
+    ]
+    db_session.commit()
+    assert [r.status for r in results] == ["rejected", "rejected", "accepted"]
+    assert "truncated" in results[0].reason
+    assert results[1].reason == "tachometer: no pulses found"
+    records = RecordRepository(db_session)
+    bad = records.get(results[0].record_id)
+    assert bad.status == "rejected" and bad.quality["error"] == "RecordFormatError"
+    assert records.results(bad.id) == []
+    assert store.contains(bad.sha256, ".wav")  # kept even though unreadable
+
+
+def test_internal_errors_are_retried_on_the_next_ingestion(db_session, store, tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0])
+    path = write_record(campaign.record_path(campaign.records[0]), 1.0, first_sample=123.0)
+    failed = process_file(db_session, path, campaign, raw_store=store, analyzer=FakeAnalyzer())
+    assert failed.status == "rejected" and failed.reason.startswith("internal error: ZeroDivision")
+
+    def healthy(*args):  # type: ignore[no-untyped-def]
+        record = args[0]
+        record.channels["acc"] = record.channels["acc"].copy()
+        record.channels["acc"][0] = 0.0
+        return FakeAnalyzer()(*args)
+
+    retried = process_file(db_session, path, campaign, raw_store=store, analyzer=healthy)
+    assert (retried.record_id, retried.status) == (failed.record_id, "accepted")
+
+
+def test_rejected_record_is_retried_only_with_other_parameters(db_session, store,
+                                                               tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0], flat=(0,))
+    path = campaign.record_path(campaign.records[0])
+    analyzer = FakeAnalyzer()
+    process_file(db_session, path, campaign, raw_store=store, analyzer=analyzer)
+    process_file(db_session, path, campaign, raw_store=store, analyzer=analyzer)
+    assert len(analyzer.calls) == 1
+    process_file(db_session, path, campaign, raw_store=store, analyzer=analyzer,
+                 params=AnalysisParameters(min_revolutions=5))
+    assert len(analyzer.calls) == 2
+
+
+def test_running_baselines_come_from_earlier_accepted_records(db_session, store,
+                                                              tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0, 3.0, 2.0])
+    analyzer = FakeAnalyzer()
+    for entry in campaign.records:
+        process_file(db_session, campaign.record_path(entry), campaign, raw_store=store,
+                     analyzer=analyzer)
+    seen = [call["baselines"]["acc"].get("residual_variance") for call in analyzer.calls]
+    assert seen == [None, pytest.approx(1.0, abs=1e-3), pytest.approx(2.0, abs=1e-3)]
+
+
+def test_alarm_raised_by_the_record_that_completes_persistence(db_session, store,
+                                                               tmp_path) -> None:
+    amplitudes = [1.0] * 10 + [2.0, 2.0, 2.0, 2.0]
+    campaign = make_campaign(tmp_path / "camp", amplitudes, flat=(11,))
+    outcomes = [
+        process_file(db_session, campaign.record_path(e), campaign, raw_store=store,
+                     analyzer=FakeAnalyzer())
+        for e in campaign.records
+    ]
+    db_session.commit()
+    # Defaults: 10 baseline records, persistence 3; day 11 is rejected and does not count.
+    raised = [i for i, o in enumerate(outcomes) if o.alarm_changes]
+    assert raised == [13]
+    assert {(c.indicator, c.state, c.opened) for c in outcomes[13].alarm_changes} == {
+        ("mci_depth", "alarm", True)}
+    assert len(outcomes[13].alarm_changes) == 20  # every tooth (the stand-in is uniform)
+    alarm = AlarmRepository(db_session).list(limit=1)[0]
+    assert alarm.raised_at == T0 + dt.timedelta(days=13)
+
+
+def test_rejected_records_never_raise_alarms(db_session, store, tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0] * 10 + [50.0] * 5, flat=(10, 11, 12, 13,
+                                                                                14))
+    for entry in campaign.records:
+        process_file(db_session, campaign.record_path(entry), campaign, raw_store=store,
+                     analyzer=FakeAnalyzer())
+    db_session.commit()
+    assert AlarmRepository(db_session).count() == 0
+
+
+def test_reprocess_from_the_raw_store_after_the_original_is_gone(db_session, store,
+                                                                 tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0])
+    path = campaign.record_path(campaign.records[0])
+    first = process_file(db_session, path, campaign, raw_store=store, analyzer=FakeAnalyzer())
+    db_session.commit()
+    path.unlink()
+    again = reprocess_record(db_session, first.record_id, AnalysisParameters(samples_per_mesh=32),
+                             analyzer=FakeAnalyzer())
+    same = reprocess_record(db_session, first.record_id, AnalysisParameters(samples_per_mesh=32),
+                            analyzer=FakeAnalyzer())
+    assert (again.outcome, same.outcome) == ("reprocessed", "unchanged")
+    assert len(RecordRepository(db_session).results(first.record_id)) == 2
+
+
+def test_file_outside_the_manifest_takes_its_modification_time(db_session, store,
+                                                               tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0])
+    dropped = write_record(tmp_path / "camp" / "dropped.wav", 1.5)
+    import os
+
+    stamp = (T0 + dt.timedelta(days=30)).timestamp()
+    os.utime(dropped, (stamp, stamp))
+    result = process_file(db_session, dropped, campaign, raw_store=store, analyzer=FakeAnalyzer())
+    record = RecordRepository(db_session).get(result.record_id)
+    assert record.taken_at == T0 + dt.timedelta(days=30) and record.label == ""
+
+
+def test_helpers() -> None:
+    assert record_suffix("a/B.WAV") == ".wav"
+    assert parse_taken_at("2024-03-01T10:00:00+02:00") == dt.datetime(2024, 3, 1, 8, tzinfo=dt.UTC)
+    assert parse_taken_at("2024-03-01T08:00:00Z") == T0
+    from gearwatch.errors import InputError
+
+    with pytest.raises(InputError):
+        parse_taken_at("2024-03-01T08:00:00")
+    with pytest.raises(InputError):
+        parse_taken_at("yesterday")
