@@ -1,9 +1,11 @@
 """WAV records: channels in the order of the manifest's ``[[channels]]``, rate from the header.
 
 PCM int16/int32 and IEEE float32/float64 data are memory-mapped (``scipy.io.wavfile``
-with ``mmap=True``): a float channel is returned as a strided read-only view of the
-file, an integer channel is converted to float (raw counts, not rescaled) one channel
-at a time. 24-bit PCM, which cannot be memory-mapped, is read whole.
+with ``mmap=True``): a float channel is returned as it is stored (the simulator writes
+float32 in physical units), as a strided read-only view of the file; integer PCM
+(8, 16, 24, 32 bit) is converted one channel at a time to float32 fractions of full
+scale, in [-1, 1) (as audio libraries do; calibrate with the channel's unit). 24-bit PCM,
+which cannot be memory-mapped, is read whole.
 """
 
 from __future__ import annotations
@@ -42,13 +44,26 @@ class WavReader:
             )
         if frames.shape[0] == 0:
             raise RecordFormatError(f"{path}: the WAV file holds no samples")
-        channels = {name: as_channel(path, name, frames[:, i]) for i, name in enumerate(names)}
+        channels = {name: _as_float(path, name, frames[:, i]) for i, name in enumerate(names)}
         return RecordData(
             channels=channels,
             sample_rate_hz=float(rate_hz),
             source=str(path),
             metadata={"format": "wav", "dtype": str(frames.dtype)},
         )
+
+
+def _as_float(path: Path, name: str, samples: np.ndarray) -> np.ndarray:
+    if samples.dtype.kind not in "iu":
+        return as_channel(path, name, samples)
+    converted = samples.astype(np.float32)  # the only copy: scaled in place below
+    if samples.dtype == np.uint8:  # 8-bit PCM is unsigned, centred on 128
+        converted -= np.float32(128.0)
+        converted /= np.float32(128.0)
+    else:
+        # scipy left-justifies 24-bit samples in int32, so one scale per container size fits.
+        converted /= np.float32(2 ** (8 * samples.dtype.itemsize - 1))
+    return converted
 
 
 def _read_wav(path: Path) -> tuple[int, np.ndarray]:

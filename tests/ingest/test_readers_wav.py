@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import wave
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,7 @@ class TestWavFloat32RoundTrip(RoundTripBase):
 
 
 class TestWavInt16RoundTrip(TestWavFloat32RoundTrip):
-    """int16 PCM comes back as float32 raw counts (no rescaling)."""
+    """int16 PCM comes back as float32 fractions of full scale (count / 32768)."""
 
     memory_mapped = False  # counts are converted to float32 per channel
     # Every int16 channel becomes float32: exactly twice the file, plus a few bytes of bookkeeping.
@@ -45,11 +46,11 @@ class TestWavInt16RoundTrip(TestWavFloat32RoundTrip):
     rtol = 0.0
 
     def signals(self, n_samples: int | None = None) -> dict[str, np.ndarray]:
-        return {name: np.round(x * 1000.0) for name, x in super().signals(n_samples).items()}
+        return {name: np.round(x * 1000.0) / 32768.0 for name, x in super().signals(n_samples).items()}
 
     def write(self, path: Path, channels: dict[str, np.ndarray], sample_rate_hz: float | None) -> None:
         assert sample_rate_hz is not None
-        frames = np.column_stack(list(channels.values())).astype(np.int16)
+        frames = np.round(np.column_stack(list(channels.values())) * 32768.0).astype(np.int16)
         scipy.io.wavfile.write(path, int(sample_rate_hz), frames)
 
     def test_reads_a_view_of_the_file_not_a_copy(self, tmp_path: Path) -> None:
@@ -73,3 +74,40 @@ def test_pulse_times_tachometer_is_refused(tmp_path: Path) -> None:
     campaign = make_campaign(tmp_path, ("acc1", "tach"), sample_rate_hz=None, tach_kind="pulse_times")
     with pytest.raises(RecordFormatError, match="pulse_times"):
         read_record(path, campaign)
+
+
+@pytest.mark.parametrize("sample_width_bytes", [1, 2, 3, 4])
+def test_integer_pcm_of_every_width_is_full_scale_float32(tmp_path: Path, sample_width_bytes: int) -> None:
+    """Written with the standard library's wave module (the only writer of 8/24-bit PCM here)."""
+    bits = 8 * sample_width_bytes
+    full_scale = 2 ** (bits - 1)
+    fractions = np.array([[0.0, -1.0], [0.5, 0.25], [-0.5, (full_scale - 1) / full_scale]])
+    counts = np.round(fractions * full_scale).astype(np.int64)
+    if sample_width_bytes == 1:
+        stored = (counts + 128).astype(np.uint8).tobytes()  # 8-bit WAV is unsigned
+    else:
+        stored = b"".join(int(c).to_bytes(sample_width_bytes, "little", signed=True) for c in counts.ravel())
+    path = tmp_path / f"pcm{bits}.wav"
+    with wave.open(str(path), "wb") as writer:
+        writer.setnchannels(2)
+        writer.setsampwidth(sample_width_bytes)
+        writer.setframerate(8000)
+        writer.writeframes(stored)
+    record = read_record(path, make_campaign(tmp_path, ("acc1", "tach"), sample_rate_hz=None))
+    assert record.sample_rate_hz == 8000.0
+    for column, name in enumerate(("acc1", "tach")):
+        assert record.channels[name].dtype == np.float32
+        np.testing.assert_allclose(record.channels[name], fractions[:, column], rtol=0, atol=1e-7)
+
+
+def test_truncated_24_bit_file_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "cut24.wav"
+    with wave.open(str(path), "wb") as writer:
+        writer.setnchannels(2)
+        writer.setsampwidth(3)
+        writer.setframerate(8000)
+        writer.writeframes(bytes(6 * 1000))
+    content = path.read_bytes()
+    path.write_bytes(content[: len(content) // 2 + 1])
+    with pytest.raises(RecordFormatError, match=r"cut24\.wav"):
+        read_record(path, make_campaign(tmp_path, ("acc1", "tach"), sample_rate_hz=None))
