@@ -1,0 +1,117 @@
+"""``gearwatch analyze`` as a user runs it: a real process on real files."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.io.wavfile
+import tomli_w
+
+from dsp.synthetic import synthetic_gear_record
+
+TOOTH1_DEG = 337.4
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "gearwatch", *args], capture_output=True, text=True, timeout=120
+    )
+
+
+def write_manifest(folder: Path, record_file: str, **rig: object) -> Path:
+    manifest = {
+        "campaign": {"id": "cli-test", "description": "synthetic"},
+        "rig": {"id": "rig-1", "pinion_teeth": 20, "gear_teeth": 21,
+                "tooth1_pitch_angle_deg": TOOTH1_DEG, **rig},
+        "acquisition": {"sample_rate_hz": 20000},
+        "tachometer": {"channel": "tach", "kind": "pulses", "shaft": "pinion", "pulses_per_rev": 1},
+        "channels": [
+            {"name": "acc", "kind": "accelerometer", "unit": "m/s^2"},
+            {"name": "tach", "kind": "tachometer", "unit": "V"},
+        ],
+        "records": [{"file": record_file, "taken_at": "2026-03-01T09:00:00Z", "label": "day 1"}],
+    }
+    path = folder / "campaign.toml"
+    path.write_text(tomli_w.dumps(manifest))
+    return path
+
+
+@pytest.fixture(scope="module")
+def campaign_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("campaign")
+    synthetic = synthetic_gear_record(
+        duration_s=3.0, spall_tooth=16, spall_depth=0.1, tooth1_pitch_angle_deg=TOOTH1_DEG, seed=7
+    )
+    (folder / "records").mkdir()
+    stereo = np.stack([synthetic.acceleration, synthetic.tach_waveform], axis=1).astype(np.float32)
+    scipy.io.wavfile.write(folder / "records" / "day01.wav", 20000, stereo)
+    np.savez(folder / "records" / "day01.npz", acc=synthetic.acceleration, tach=synthetic.tach_waveform)
+    write_manifest(folder, "records/day01.wav")
+    return folder
+
+
+@pytest.mark.parametrize("record", ["records/day01.wav", "records/day01.npz"])
+def test_analyze_json_localises_the_spall(campaign_dir: Path, record: str) -> None:
+    result = run_cli("analyze", str(campaign_dir / record), "--campaign",
+                     str(campaign_dir / "campaign.toml"), "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["worst_tooth"] == 16
+    assert report["samples_per_rev"] == 1280
+    assert report["revolutions"] >= 45
+    assert abs(report["speed_rpm"] - 1000) < 15
+    assert [t["tooth"] for t in report["teeth"]] == list(range(1, 21))
+    assert {"mci_depth", "diff_energy", "diff_kurtosis"} <= set(report["teeth"][0])
+    assert set(report["metrics"]) == {"rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4",
+                                      "nb4", "m6a", "m8a", "er"}
+    assert {"tach_repairs", "speed_variation"} <= set(report["quality"])
+    provenance = report["provenance"]
+    import hashlib
+
+    assert provenance["input_sha256"] == hashlib.sha256(
+        (campaign_dir / record).read_bytes()).hexdigest()
+    assert provenance["code_version"]
+    assert provenance["parameters"]["mci_form"] == "robust"
+
+
+def test_analyze_table_marks_the_worst_tooth(campaign_dir: Path) -> None:
+    result = run_cli("analyze", str(campaign_dir / "records/day01.wav"), "--campaign",
+                     str(campaign_dir / "campaign.toml"))
+    assert result.returncode == 0, result.stderr
+    worst_lines = [line for line in result.stdout.splitlines() if "worst" in line and "◀" in line]
+    assert len(worst_lines) == 1 and worst_lines[0].split()[0] == "16"
+
+
+def bad_input_cases(folder: Path) -> dict[str, list[str]]:
+    manifest = folder / "campaign.toml"
+    (folder / "corrupt.wav").write_bytes(b"RIFF\x00\x00\x00\x00WAVEgarbage")
+    truncated = (folder / "records" / "day01.wav").read_bytes()[:200]
+    (folder / "truncated.wav").write_bytes(truncated)
+    bad_manifest = folder / "bad.toml"
+    bad_manifest.write_text(manifest.read_text().replace("[rig]", "[rig]\nspeeed = 3"))
+    return {
+        "missing record": ["analyze", str(folder / "nope.wav"), "--campaign", str(manifest)],
+        "missing manifest": ["analyze", str(folder / "records/day01.wav"), "--campaign",
+                             str(folder / "nope.toml")],
+        "corrupt wav": ["analyze", str(folder / "corrupt.wav"), "--campaign", str(manifest)],
+        "truncated wav": ["analyze", str(folder / "truncated.wav"), "--campaign", str(manifest)],
+        "unknown manifest key": ["analyze", str(folder / "records/day01.wav"), "--campaign",
+                                 str(bad_manifest)],
+        "unknown suffix": ["analyze", str(manifest), "--campaign", str(manifest)],
+    }
+
+
+def test_bad_input_gives_one_clear_line_and_a_nonzero_exit(campaign_dir: Path) -> None:
+    for case, args in bad_input_cases(campaign_dir).items():
+        result = run_cli(*args)
+        assert result.returncode != 0, case
+        assert "Traceback" not in result.stderr, (case, result.stderr)
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("gearwatch: error:"), (case, result.stderr)
+    unknown = run_cli(*bad_input_cases(campaign_dir)["unknown manifest key"])
+    assert "speeed" in unknown.stderr
