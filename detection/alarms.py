@@ -91,11 +91,11 @@ class RuleSettings:
     """
 
     indicator: str
-    baseline_records: int = 10
+    baseline_records: int = 8
     warning_level: float = 4.0
     alarm_level: float = 8.0
     clear_level: float = 2.0
-    persistence: int = 3
+    persistence: int = 2
     spread_floor_fraction: float = 0.05
     spread_floor_abs: float = 1e-9
     direction: Direction = field(default="higher_is_worse")

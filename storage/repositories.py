@@ -640,11 +640,16 @@ RULE_FIELDS = (
 )
 
 DEFAULT_RULES: dict[str, dict[str, Any]] = {
-    "mci_depth": {},
-    "kurtosis": {},
+    "mci_depth": {"spread_floor_abs": 0.02},
+    "kurtosis": {"spread_floor_abs": 0.1},
 }
-"""Rules every new rig gets (:meth:`AlarmRuleRepository.ensure_defaults`); the detection
-defaults apply (10 baseline records, warning 4, alarm 8, clear 2, persistence 3)."""
+"""Rules every new rig gets (:meth:`AlarmRuleRepository.ensure_defaults`): the MCI well depth
+per tooth and the whole-record kurtosis (the one that works without tooth counts). Other
+settings are the defaults of :class:`storage.models.AlarmRule`: 8 baseline records, warning 4,
+alarm 8, clear 2 (baseline units), persistence 2. Absolute spread floors — 0.02 Np for the
+well depth, 0.1 for kurtosis — stop noise-free data (simulations) from turning numerical
+wiggles into alarms; on measured data the baseline's own spread is larger (simulated CETIM-like
+campaign: ≈0.03 Np and ≈0.2)."""
 
 
 class AlarmRuleRepository:

@@ -20,14 +20,15 @@ from storage.repositories import (
     TrendRepository,
 )
 from tests.gearwatch.jobfixtures import FakeAnalyzer, make_campaign, write_record
-from tests.storage.dbfixtures import (  # noqa: F401
-    _postgres_schema,
-    db_engine,
-    db_engine_migrated,
-    db_session,
-    db_url,
-)
+from tests.storage import dbfixtures
 from tests.storage.factories import T0
+
+# The database fixtures (SQLite and PostgreSQL), shared with tests/storage.
+_postgres_schema = dbfixtures._postgres_schema
+db_url = dbfixtures.db_url
+db_engine_migrated = dbfixtures.db_engine_migrated
+db_engine = dbfixtures.db_engine
+db_session = dbfixtures.db_session
 
 
 def row_counts(session: Session) -> dict[str, int]:
@@ -164,27 +165,26 @@ def test_running_baselines_come_from_earlier_accepted_records(db_session, store,
 
 def test_alarm_raised_by_the_record_that_completes_persistence(db_session, store,
                                                                tmp_path) -> None:
-    amplitudes = [1.0] * 10 + [2.0, 2.0, 2.0, 2.0]
-    campaign = make_campaign(tmp_path / "camp", amplitudes, flat=(11,))
+    amplitudes = [1.0] * 8 + [2.0, 2.0, 2.0, 2.0]
+    campaign = make_campaign(tmp_path / "camp", amplitudes, flat=(9,))
     outcomes = [
         process_file(db_session, campaign.record_path(e), campaign, raw_store=store,
                      analyzer=FakeAnalyzer())
         for e in campaign.records
     ]
     db_session.commit()
-    # Defaults: 10 baseline records, persistence 3; day 11 is rejected and does not count.
+    # Defaults: 8 baseline records, persistence 2; day 9 is rejected and does not count.
     raised = [i for i, o in enumerate(outcomes) if o.alarm_changes]
-    assert raised == [13]
-    assert {(c.indicator, c.state, c.opened) for c in outcomes[13].alarm_changes} == {
+    assert raised == [10]
+    assert {(c.indicator, c.state, c.opened) for c in outcomes[10].alarm_changes} == {
         ("mci_depth", "alarm", True)}
-    assert len(outcomes[13].alarm_changes) == 20  # every tooth (the stand-in is uniform)
+    assert len(outcomes[10].alarm_changes) == 20  # every tooth (the stand-in is uniform)
     alarm = AlarmRepository(db_session).list(limit=1)[0]
-    assert alarm.raised_at == T0 + dt.timedelta(days=13)
+    assert alarm.raised_at == T0 + dt.timedelta(days=10)
 
 
 def test_rejected_records_never_raise_alarms(db_session, store, tmp_path) -> None:
-    campaign = make_campaign(tmp_path / "camp", [1.0] * 10 + [50.0] * 5, flat=(10, 11, 12, 13,
-                                                                                14))
+    campaign = make_campaign(tmp_path / "camp", [1.0] * 8 + [50.0] * 4, flat=(8, 9, 10, 11))
     for entry in campaign.records:
         process_file(db_session, campaign.record_path(entry), campaign, raw_store=store,
                      analyzer=FakeAnalyzer())
