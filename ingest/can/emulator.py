@@ -265,7 +265,13 @@ def emulate(
     first_record_id: int = 1,
     max_frames_per_s: float | None = None,
     pause_between_records_s: float = 0.0,
-    **frame_options: object,
+    channel_kinds: Mapping[str, str] | None = None,
+    tach_channel: str | None = None,
+    tach_kind: str = "pulses",
+    pulses_per_rev: int = 1,
+    tach_shaft: str = "pinion",
+    units: Mapping[str, str] | None = None,
+    start_time: dt.datetime | None = None,
 ) -> EmulationStats:
     """Play records onto ``bus`` like a rig.
 
@@ -280,8 +286,8 @@ def emulate(
     max_frames_per_s : float, optional
         Cap on the frame rate (flow control for receivers that drop when flooded, such as
         UDP multicast sockets).
-    **frame_options
-        Passed to :func:`record_frames` (``tach_channel``, ``tach_kind``, ``pulses_per_rev`` ...).
+    channel_kinds, tach_channel, tach_kind, pulses_per_rev, tach_shaft, units, start_time
+        Passed to :func:`record_frames` for every record.
     """
     if speed < 0:
         raise ValueError(f"speed {speed} < 0")
@@ -290,17 +296,35 @@ def emulate(
     stats = EmulationStats()
     began = time.perf_counter()
     for offset, record in enumerate(records):
-        frames = record_frames(record, record_id=first_record_id + offset, **frame_options)  # type: ignore[arg-type]
+        frames = record_frames(
+            record,
+            record_id=first_record_id + offset,
+            channel_kinds=channel_kinds,
+            tach_channel=tach_channel,
+            tach_kind=tach_kind,
+            pulses_per_rev=pulses_per_rev,
+            tach_shaft=tach_shaft,
+            units=units,
+            start_time=start_time,
+        )
         t0 = time.perf_counter()
-        for index, (t_s, msg) in enumerate(frames):
-            target = t0 + t_s / speed if speed > 0 else t0
-            if max_frames_per_s:
-                target = max(target, t0 + index / max_frames_per_s)
-            ahead = target - time.perf_counter()
-            if ahead > 0.001:  # sleeping per frame costs more than a frame at these rates
-                time.sleep(ahead)
-            send_with_flow_control(bus, msg, stats)
-            stats.frames += 1
+        if speed == 0 and not max_frames_per_s:
+            send = bus.send
+            for _, msg in frames:  # tight loop: nothing to pace
+                try:
+                    send(msg)
+                except can.CanOperationError:  # transmit queue full: wait, never drop
+                    send_with_flow_control(bus, msg, stats)
+        else:
+            for index, (t_s, msg) in enumerate(frames):
+                target = t0 + t_s / speed if speed > 0 else t0
+                if max_frames_per_s:
+                    target = max(target, t0 + index / max_frames_per_s)
+                ahead = target - time.perf_counter()
+                if ahead > 0.001:  # sleeping per frame costs more than a frame at these rates
+                    time.sleep(ahead)
+                send_with_flow_control(bus, msg, stats)
+        stats.frames += len(frames)
         stats.records += 1
         if pause_between_records_s:
             time.sleep(pause_between_records_s)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import socket
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -10,19 +11,30 @@ import can
 
 from ingest.can.assembler import AssembledRecord, AssemblerStats, RecordAssembler
 
+UDP_RECEIVE_BUFFER_BYTES = 4 << 20
+"""Socket receive buffer asked for on ``udp_multicast`` (the kernel caps it at net.core.rmem_max)."""
+
 
 def open_bus(interface: str, channel: str, **options: Any) -> can.BusABC:
     """A python-can bus in CAN FD mode, e.g. ``open_bus("socketcan", "can0")``,
     ``open_bus("virtual", "rig")`` or ``open_bus("udp_multicast", "239.74.163.2")``.
 
-    Raises :class:`gearwatch.errors.InputError` when python-can cannot open it.
+    On ``udp_multicast`` the socket's receive buffer is enlarged: UDP drops datagrams when
+    the receiver falls behind, and a larger buffer absorbs the bursts of a fast sender (the
+    assembler still detects any loss). Raises :class:`gearwatch.errors.InputError` when
+    python-can cannot open the bus.
     """
     from gearwatch.errors import InputError
 
     try:
-        return can.Bus(interface=interface, channel=channel, fd=True, **options)
+        bus = can.Bus(interface=interface, channel=channel, fd=True, **options)
     except (can.CanError, ImportError, OSError, ValueError) as error:
         raise InputError(f"cannot open CAN bus {interface}:{channel}: {error}") from error
+    if interface == "udp_multicast":
+        sock = getattr(getattr(bus, "_multicast", None), "_socket", None)
+        if isinstance(sock, socket.socket):
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UDP_RECEIVE_BUFFER_BYTES)
+    return bus
 
 
 def listen(
