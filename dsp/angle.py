@@ -18,11 +18,14 @@ Method (what :func:`angle_resample` does, in order):
    frequency, 0 above. The record is extended by even reflection at both ends during filtering so
    that the circular FFT does not wrap the end onto the start. Otherwise no filter is applied.
 4. **Interpolation.** The signal is interpolated at the grid times by a cardinal quintic
-   B-spline (degree-5 spline through every sample: a recursive prefilter then a 6-tap local
-   evaluation, :func:`scipy.ndimage.spline_filter1d` and :func:`scipy.ndimage.map_coordinates`,
-   mirror boundary). It is O(n), about ten times faster than a global
-   :class:`scipy.interpolate.CubicSpline` of the record, and more accurate at every frequency
-   (for a tone at 0.1 × the sampling rate: 2e-6 vs 2e-4 RMS error relative to its amplitude).
+   B-spline (the degree-5 spline through every sample; Unser 1999, "Splines: a perfect fit for
+   signal and image processing", IEEE SPM 16(6)): a recursive prefilter (two poles, causal and
+   anti-causal passes, mirror boundary) gives the spline coefficients, then each grid point is a
+   6-tap weighted sum (Thévenaz, Blu & Unser 2000 weights), both compiled with numba. It is
+   O(n), several times faster than a global :class:`scipy.interpolate.CubicSpline` of the
+   record, and more accurate at every frequency (a tone at 0.1 × the sampling rate: 2e-6 vs
+   2e-4 RMS error relative to its amplitude; equal to :func:`scipy.ndimage.map_coordinates`
+   with ``order=5, mode="mirror"`` to 1e-13).
 
 References: Fyfe & Munck 1997, "Analysis of computed order tracking", MSSP 11(2); McFadden 1987,
 "A revised model for the extraction of periodic waveforms by time domain averaging", MSSP 1(1).
@@ -43,10 +46,10 @@ True
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import scipy.fft
 from numpy.typing import ArrayLike, NDArray
-from scipy import ndimage
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
 __all__ = [
@@ -71,6 +74,175 @@ PASSBAND_FRACTION = 0.8
 
 _ANGLE_EPS = 1e-9
 """Revolutions; absorbs rounding when the pulse span is an exact whole number of revolutions."""
+
+# Poles of the quintic B-spline interpolation prefilter (Unser 1999, table I).
+_POLE_1 = -0.43057534709997379
+_POLE_2 = -0.043096288203264653
+
+
+@numba.njit(cache=True)
+def _pole_pass(c: FloatArray, z: float, gain: float) -> None:
+    """One pole of the prefilter, in place: ``c <- gain·c`` through the causal recursion
+    ``y[i] = gain·x[i] + z·y[i-1]``, then the anti-causal ``y[i] = z·(y[i+1] - y[i])``, with the
+    mirror-boundary initial values of Unser 1999.
+
+    The recursions are latency-bound, so the record is cut into 4 segments run as 4 interleaved
+    chains; an interior segment starts from its exact initial value, the pole's impulse response
+    summed over the ``horizon`` samples before (causal) or after (anti-causal) it, where
+    ``|z|**horizon < 1e-17``.
+    """
+    n = c.size
+    horizon = int(np.ceil(np.log(1e-17) / np.log(abs(z))))
+    seg = n // 4
+    if seg <= horizon + 1:  # short record: one chain
+        zk = 1.0
+        acc = 0.0
+        period = 2 * n - 2
+        for k in range(horizon):
+            m = k % period  # index into the mirror-extended record
+            acc += zk * c[m if m < n else period - m]
+            zk *= z
+        c[0] = gain * acc
+        for i in range(1, n):
+            c[i] = gain * c[i] + z * c[i - 1]
+        c[n - 1] = (z / (z * z - 1.0)) * (c[n - 1] + z * c[n - 2])
+        for i in range(n - 2, -1, -1):
+            c[i] = z * (c[i + 1] - c[i])
+        return
+    s1 = seg
+    s2 = 2 * seg
+    s3 = 3 * seg
+    # Causal initial values, computed before any sample is overwritten.
+    zk = 1.0
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    a3 = 0.0
+    for k in range(horizon):
+        a0 += zk * c[k]  # mirror boundary: sum of z^k x[k]
+        a1 += zk * c[s1 - k]
+        a2 += zk * c[s2 - k]
+        a3 += zk * c[s3 - k]
+        zk *= z
+    c[0] = gain * a0
+    c[s1] = gain * a1
+    c[s2] = gain * a2
+    c[s3] = gain * a3
+    for i in range(1, seg):
+        c[i] = gain * c[i] + z * c[i - 1]
+        c[s1 + i] = gain * c[s1 + i] + z * c[s1 + i - 1]
+        c[s2 + i] = gain * c[s2 + i] + z * c[s2 + i - 1]
+        c[s3 + i] = gain * c[s3 + i] + z * c[s3 + i - 1]
+    for i in range(s3 + seg, n):
+        c[i] = gain * c[i] + z * c[i - 1]
+    # Anti-causal: segment ends e0..e2 start from exact sums; the last from the mirror formula.
+    e0 = s1 - 1
+    e1 = s2 - 1
+    e2 = s3 - 1
+    e3 = s3 + seg - 1
+    zk = z
+    b0 = 0.0
+    b1 = 0.0
+    b2 = 0.0
+    for k in range(horizon):
+        b0 -= zk * c[e0 + k]
+        b1 -= zk * c[e1 + k]
+        b2 -= zk * c[e2 + k]
+        zk *= z
+    c[n - 1] = (z / (z * z - 1.0)) * (c[n - 1] + z * c[n - 2])
+    for i in range(n - 2, e3 - 1, -1):
+        c[i] = z * (c[i + 1] - c[i])
+    c[e0] = b0
+    c[e1] = b1
+    c[e2] = b2
+    for i in range(1, seg):
+        c[e0 - i] = z * (c[e0 - i + 1] - c[e0 - i])
+        c[e1 - i] = z * (c[e1 - i + 1] - c[e1 - i])
+        c[e2 - i] = z * (c[e2 - i + 1] - c[e2 - i])
+        c[e3 - i] = z * (c[e3 - i + 1] - c[e3 - i])
+
+
+@numba.njit(cache=True)
+def _bspline5_prefilter(rows: FloatArray) -> None:
+    """Quintic B-spline interpolation coefficients of each row, in place (mirror boundary)."""
+    gain = (1 - _POLE_1) * (1 - 1 / _POLE_1) * (1 - _POLE_2) * (1 - 1 / _POLE_2)
+    for r in range(rows.shape[0]):
+        _pole_pass(rows[r], _POLE_1, gain)
+        _pole_pass(rows[r], _POLE_2, 1.0)
+
+
+@numba.njit(cache=True)
+def _bspline5_at(c: FloatArray, positions: FloatArray, out: FloatArray, scale: float = 1.0) -> None:
+    """Evaluate the quintic spline with coefficients ``c`` at fractional sample positions
+    ``scale × positions`` (``scale`` = the sampling rate when ``positions`` are times)."""
+    n = c.size
+    for j in range(positions.size):
+        p = positions[j] * scale
+        i = int(np.floor(p))
+        w = p - i
+        # Weights of samples i-2 .. i+3 (Thévenaz, Blu & Unser 2000, degree 5).
+        w2 = w * w
+        w_p3 = (1.0 / 120.0) * w * w2 * w2
+        w2 -= w
+        w4 = w2 * w2
+        w -= 0.5
+        t = w2 * (w2 - 3.0)
+        w_m2 = (1.0 / 24.0) * (1.0 / 5.0 + w2 + w4) - w_p3
+        t0 = (1.0 / 24.0) * (w2 * (w2 - 5.0) + 46.0 / 5.0)
+        t1 = (-1.0 / 12.0) * w * (t + 4.0)
+        w_0 = t0 + t1
+        w_p1 = t0 - t1
+        t0 = (1.0 / 16.0) * (9.0 / 5.0 - t)
+        t1 = (1.0 / 24.0) * w * (w4 - w2 - 5.0)
+        w_m1 = t0 + t1
+        w_p2 = t0 - t1
+        if i >= 2 and i + 3 <= n - 1:
+            out[j] = (
+                w_m2 * c[i - 2]
+                + w_m1 * c[i - 1]
+                + w_0 * c[i]
+                + w_p1 * c[i + 1]
+                + w_p2 * c[i + 2]
+                + w_p3 * c[i + 3]
+            )
+        else:  # near the ends: mirror the indices
+            weights = (w_m2, w_m1, w_0, w_p1, w_p2, w_p3)
+            acc = 0.0
+            for k in range(6):
+                idx = i - 2 + k
+                if idx < 0:
+                    idx = -idx
+                if idx > n - 1:
+                    idx = 2 * (n - 1) - idx
+                idx = min(max(idx, 0), n - 1)  # records shorter than the stencil
+                acc += weights[k] * c[idx]
+            out[j] = acc
+
+
+@numba.njit(cache=True)
+def _piecewise_cubic_uniform(
+    breaks: FloatArray, coefficients: FloatArray, step: float, n_points: int
+) -> tuple[FloatArray, bool]:
+    """Evaluate a scipy PPoly (cubic) at ``min(q·step, breaks[-1])``, q = 0..n_points-1.
+
+    Also returns whether the values are strictly increasing.
+    """
+    out = np.empty(n_points)
+    last = breaks.size - 2
+    k = 0
+    increasing = True
+    previous = -np.inf
+    for q in range(n_points):
+        x = min(q * step, breaks[-1])
+        while k < last and x >= breaks[k + 1]:
+            k += 1
+        d = x - breaks[k]
+        value = ((coefficients[0, k] * d + coefficients[1, k]) * d + coefficients[2, k]) * d
+        value += coefficients[3, k]
+        increasing = increasing and value > previous
+        previous = value
+        out[q] = value
+    return out, increasing
 
 
 def samples_per_revolution(teeth: int, samples_per_mesh: int = DEFAULT_SAMPLES_PER_MESH) -> int:
@@ -143,16 +315,22 @@ def angle_grid_times(
     n_revs = int(np.floor(shaft_ratio * tach_angle_rev[-1] + _ANGLE_EPS))
     if n_revs < 1:
         return np.empty((0, samples_per_rev))
-    # Tach-shaft angle of every grid point; clip the last one onto the span against rounding.
-    grid_tach_angle = np.arange(n_revs * samples_per_rev) / (samples_per_rev * shaft_ratio)
-    np.minimum(grid_tach_angle, tach_angle_rev[-1], out=grid_tach_angle)
-    times = CubicSpline(tach_angle_rev, t)(grid_tach_angle)
-    if np.any(np.diff(times) <= 0):
-        times = PchipInterpolator(tach_angle_rev, t)(grid_tach_angle)
+    # Grid point q is at tach-shaft angle q·step (clipped onto the pulse span against rounding).
+    step = 1.0 / (samples_per_rev * shaft_ratio)
+    n_points = n_revs * samples_per_rev
+    spline = CubicSpline(tach_angle_rev, t)
+    times, increasing = _piecewise_cubic_uniform(
+        spline.x, np.ascontiguousarray(spline.c), step, n_points
+    )
+    if not increasing:
+        monotone = PchipInterpolator(tach_angle_rev, t)
+        times, _ = _piecewise_cubic_uniform(
+            monotone.x, np.ascontiguousarray(monotone.c), step, n_points
+        )
     times = times.reshape(n_revs, samples_per_rev)
     if record_duration_s is not None:
-        inside = np.all(times <= record_duration_s, axis=1)
-        times = times[: int(np.argmin(inside)) if not inside.all() else n_revs]
+        # Times increase, so a revolution is inside the record when its last time is.
+        times = times[: int(np.searchsorted(times[:, -1], record_duration_s, side="right"))]
     return np.asarray(times, dtype=np.float64)
 
 
@@ -280,19 +458,10 @@ def angle_resample(
     if min_angular_rate_hz < sample_rate_hz:
         x = angle_lowpass(x, sample_rate_hz, 0.5 * min_angular_rate_hz, axis=-1)
 
-    coefficients = ndimage.spline_filter1d(
-        x, order=INTERPOLATION_ORDER, axis=-1, mode="mirror", output=np.float64
-    )
-    positions = (times.ravel() * sample_rate_hz)[np.newaxis, :]
-    rows = coefficients.reshape(-1, n)
-    out = np.empty((rows.shape[0], positions.shape[1]))
-    for row, out_row in zip(rows, out, strict=True):
-        ndimage.map_coordinates(
-            row,
-            positions,
-            output=out_row,
-            order=INTERPOLATION_ORDER,
-            mode="mirror",
-            prefilter=False,
-        )
+    rows = np.array(x.reshape(-1, n), dtype=np.float64, order="C")  # a copy: filtered in place
+    _bspline5_prefilter(rows)
+    flat_times = times.ravel()
+    out = np.empty((rows.shape[0], flat_times.size))
+    for r in range(rows.shape[0]):
+        _bspline5_at(rows[r], flat_times, out[r], float(sample_rate_hz))
     return out.reshape((*x.shape[:-1], n_revs, int(samples_per_rev)))

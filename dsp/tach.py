@@ -113,12 +113,20 @@ class TachAnalysis:
 # --------------------------------------------------------------------------- edge detection
 
 
+LEVEL_SAMPLES = 16_384
+"""Samples (at random positions, fixed seed) from which :func:`waveform_levels` estimates the
+levels and the noise of a longer waveform."""
+
+
 def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
     """Robust low and high state levels of a two-level waveform, and its noise RMS.
 
-    The waveform is split at the midpoint of its 0.1 % and 99.9 % percentiles (so a few spikes
+    The waveform is split at the midpoint of its 0.1 % and 99.9 % quantiles (so a few spikes
     do not move it); each level is the median of the samples on its side. The noise RMS is
-    estimated from the median absolute first difference (edges are rare, so they do not bias it).
+    1.4826 × the median absolute first difference / √2 (edges are rare, so they do not bias it).
+    A waveform longer than 16384 samples is represented by 16384 samples (and first differences)
+    at random positions drawn with a fixed seed: unlike a regular stride this cannot alias with
+    the pulse period, and the estimates' sampling error is far below the noise.
 
     Parameters
     ----------
@@ -136,16 +144,51 @@ def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
     >>> waveform_levels(ttl)
     (0.0, 5.0, 0.0)
     """
-    x = np.asarray(signal, dtype=np.float64)
-    lo_extreme, hi_extreme = np.percentile(x, [0.1, 99.9])
+    x = np.asarray(signal, dtype=np.float64).ravel()
+    if x.size == 0:
+        raise TachometerError("empty tachometer waveform")
+    if x.size > LEVEL_SAMPLES:
+        picks = np.sort(np.random.default_rng(0).integers(0, x.size - 1, LEVEL_SAMPLES))
+        values = x[picks]
+        steps = x[picks + 1] - values
+    else:
+        values = x
+        steps = np.diff(x)
+    lo_extreme, hi_extreme = np.percentile(values, [0.1, 99.9])
     mid = 0.5 * (lo_extreme + hi_extreme)
-    below = x[x < mid]
-    above = x[x >= mid]
+    below = values[values < mid]
+    above = values[values >= mid]
     low_level = float(np.median(below)) if below.size else float(mid)
     high_level = float(np.median(above)) if above.size else float(mid)
-    # MAD of first differences: for white noise diff has std sqrt(2)·sigma.
-    noise_rms = float(1.4826 * np.median(np.abs(np.diff(x))) / np.sqrt(2.0)) if x.size > 1 else 0.0
+    noise_rms = float(1.4826 * np.median(np.abs(steps)) / np.sqrt(2.0)) if steps.size else 0.0
     return low_level, high_level, noise_rms
+
+
+@numba.njit(cache=True)
+def _schmitt_flips(
+    x: FloatArray, lower: float, upper: float
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Low-to-high flips of a Schmitt trigger: (last sample below ``lower``, first above ``upper``).
+
+    The state starts unknown, so an edge in progress at the first sample is not a flip.
+    """
+    start = np.empty(x.size // 2 + 1, dtype=np.int64)
+    stop = np.empty(x.size // 2 + 1, dtype=np.int64)
+    n_flips = 0
+    state = 0
+    last_low = -1
+    for i in range(x.size):
+        v = x[i]
+        if v < lower:
+            state = -1
+            last_low = i
+        elif v > upper:
+            if state == -1:
+                start[n_flips] = last_low
+                stop[n_flips] = i
+                n_flips += 1
+            state = 1
+    return start[:n_flips], stop[:n_flips]
 
 
 @numba.njit(cache=True)
@@ -275,15 +318,7 @@ def pulse_times_from_waveform(
 
     upper = threshold + 0.5 * hysteresis
     lower = threshold - 0.5 * hysteresis
-    state = np.zeros(x.size, dtype=np.int8)
-    state[x > upper] = 1
-    state[x < lower] = -1
-    decided = np.flatnonzero(state)
-    decided_state = state[decided]
-    # The trigger flips low -> high between consecutive decided samples of opposite state.
-    flips = np.flatnonzero((decided_state[:-1] == -1) & (decided_state[1:] == 1))
-    start = decided[flips].astype(np.int64)
-    stop = decided[flips + 1].astype(np.int64)
+    start, stop = _schmitt_flips(np.ascontiguousarray(x), float(lower), float(upper))
     crossings = _edge_crossings(x, start, stop, float(threshold))
     return np.asarray(crossings / float(sample_rate_hz), dtype=np.float64)
 

@@ -175,3 +175,53 @@ def test_errors() -> None:
         angle_resample(x, FS, [0.01, 0.01, 0.02], 1, 64)
     assert samples_per_revolution(20) == 1280
     assert samples_per_revolution(21, 32) == 672
+
+
+def test_quintic_kernels_match_scipy_ndimage() -> None:
+    # Independent implementation of the same interpolant (prefilter + evaluation), including
+    # positions at and next to both ends, where the mirror boundary acts.
+    from scipy import ndimage
+
+    from dsp.angle import _bspline5_at, _bspline5_prefilter
+
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal((2, 5000))
+    positions = np.concatenate([[0.0, 0.3, 1.7, 4998.2, 4999.0], rng.uniform(0, 4999, 2000)])
+    coefficients = x.copy()
+    _bspline5_prefilter(coefficients)
+    for row in range(2):
+        ref_coefficients = ndimage.spline_filter1d(x[row], order=5, mode="mirror")
+        np.testing.assert_allclose(coefficients[row], ref_coefficients, atol=1e-12)
+        out = np.empty(positions.size)
+        _bspline5_at(coefficients[row], positions, out)
+        ref = ndimage.map_coordinates(
+            ref_coefficients, [positions], order=5, mode="mirror", prefilter=False
+        )
+        np.testing.assert_allclose(out, ref, atol=1e-12)
+        np.testing.assert_allclose(out[[0, 4]], x[row, [0, 4999]], atol=1e-12)  # interpolates
+
+
+@pytest.mark.parametrize("n", [2, 7, 60, 1001, 100_003])
+def test_prefilter_all_lengths(n: int) -> None:
+    # Short records take the single-chain path, long ones the 4 interleaved chains.
+    from scipy import ndimage
+
+    from dsp.angle import _bspline5_prefilter
+
+    x = np.random.default_rng(n).standard_normal((1, n))
+    c = x.copy()
+    _bspline5_prefilter(c)
+    ref = ndimage.spline_filter1d(x[0], order=5, mode="mirror")
+    np.testing.assert_allclose(c[0], ref, atol=1e-12 * max(1.0, np.abs(ref).max()))
+
+
+def test_violent_speed_change_falls_back_to_monotone_phase_model() -> None:
+    # A 50× speed jump: the not-a-knot spline through (angle, time) overshoots and would put grid
+    # times out of order; the monotone PCHIP model is used instead.
+    pulses = np.cumsum([0, 1, 1, 1, 1, 0.02, 0.02, 0.02, 0.02])
+    angles = np.linspace(0, 8, 8001)
+    assert np.any(np.diff(CubicSpline(np.arange(9.0), pulses)(angles)) <= 0)
+    times = angle_grid_times(pulses, 1, 1000)
+    assert times.shape == (8, 1000)
+    assert np.all(np.diff(times.ravel()) > 0)
+    np.testing.assert_allclose(times[:, 0], pulses[:-1])  # still through every pulse
