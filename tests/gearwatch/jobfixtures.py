@@ -25,9 +25,10 @@ SAMPLE_RATE_HZ = 2000
 
 
 def write_record(path: Path, amplitude: float, *, flat_tach: bool = False,
-                 first_sample: float | None = None, phase_rad: float = 0.0) -> Path:
-    """Two channels (acc, tach); the acc RMS is ``amplitude`` (whole periods, any phase)."""
-    n = 4000
+                 first_sample: float | None = None, phase_rad: float = 0.0,
+                 n_samples: int = 4000) -> Path:
+    """Two channels (acc, tach at 25 Hz); the acc RMS is ``amplitude`` (whole periods)."""
+    n = n_samples
     t = np.arange(n) / SAMPLE_RATE_HZ
     acc = amplitude * np.sqrt(2) * np.sin(2 * np.pi * 50 * t + phase_rad)
     if first_sample is not None:
@@ -39,14 +40,14 @@ def write_record(path: Path, amplitude: float, *, flat_tach: bool = False,
 
 def make_campaign(folder: Path, amplitudes: list[float], *, name: str = "camp-a",
                   rig: str = "rig-1", flat: tuple[int, ...] = (),
-                  truncated: tuple[int, ...] = ()) -> Campaign:
+                  truncated: tuple[int, ...] = (), n_samples: int = 4000) -> Campaign:
     """``day<NN>.wav`` per amplitude, one day apart, and ``campaign.toml`` listing them."""
     folder.mkdir(parents=True, exist_ok=True)
     entries = []
     for day, amplitude in enumerate(amplitudes):
         # A different phase every day: equal amplitudes still make different files.
         path = write_record(folder / f"day{day:02d}.wav", amplitude, flat_tach=day in flat,
-                            phase_rad=0.1 * day)
+                            phase_rad=0.1 * day, n_samples=n_samples)
         if day in truncated:
             path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
         taken_at = (T0 + dt.timedelta(days=day)).isoformat()

@@ -230,3 +230,162 @@ def test_helpers() -> None:
         parse_taken_at("2024-03-01T08:00:00")
     with pytest.raises(InputError):
         parse_taken_at("yesterday")
+
+
+# -- Dramatiq workers over RabbitMQ --------------------------------------------------------------
+def broker_url() -> str:
+    import os
+
+    return os.environ.get("GEARWATCH_TEST_BROKER_URL", "amqp://guest:guest@127.0.0.1:5672/")
+
+
+def _require_broker() -> None:
+    import pika
+
+    try:
+        connection = pika.BlockingConnection(pika.URLParameters(broker_url()))
+        connection.close()
+    except Exception as error:  # any failure to connect means "not reachable"
+        from tests.conftest import service_unavailable
+
+        service_unavailable("RabbitMQ", f"{broker_url()}: {type(error).__name__}: {error}")
+
+
+def _start_worker(env: dict[str, str], log_path):  # type: ignore[no-untyped-def]
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    with open(log_path, "wb") as log:
+        return subprocess.Popen(
+            [sys.executable, "-m", "dramatiq", "gearwatch.worker", "--processes", "1",
+             "--threads", "1", "--path", str(repo)],
+            cwd=repo, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+        )
+
+
+def _stop(process, sig) -> None:  # type: ignore[no-untyped-def]
+    import os
+
+    try:
+        os.killpg(process.pid, sig)
+    except ProcessLookupError:
+        return
+    try:
+        process.wait(timeout=30)
+    except Exception:
+        import signal
+
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait(timeout=30)
+
+
+@pytest.mark.broker
+@pytest.mark.slow
+def test_two_workers_one_killed_mid_job_every_record_exactly_once(
+    db_url: str, db_engine: sa.Engine, tmp_path
+) -> None:
+    """50 records, 2 Dramatiq worker processes, one SIGKILLed while both are busy: every record
+    is processed exactly once (one record row, one result version) and nothing is left."""
+    import os
+    import secrets
+    import signal
+    import time
+
+    import dramatiq
+    import pika
+    from dramatiq.brokers.rabbitmq import RabbitmqBroker
+
+    from storage.db import session_factory, session_scope
+    from storage.models import Record, ResultVersion, ToothIndicator
+    from storage.repositories import CampaignRepository
+
+    _require_broker()
+    n_records = 50
+    # 60 s at 2 kHz per record: each job takes a good fraction of a second, so a worker spends
+    # most of its time inside a job and the kill lands in one.
+    campaign = make_campaign(tmp_path / "camp", [1.0 + 0.01 * i for i in range(n_records)],
+                             n_samples=120_000)
+    factory = session_factory(db_engine)
+    with session_scope(factory) as session:
+        CampaignRepository(session).ensure(campaign)
+
+    queue = f"gw_test_{secrets.token_hex(6)}"
+    env = {
+        **os.environ,
+        "GEARWATCH_QUEUE": queue,
+        "GEARWATCH_BROKER_URL": broker_url(),
+        "GEARWATCH_DATABASE_URL": db_url,
+        "GEARWATCH_RAW_STORE": str(tmp_path / "raw-store"),
+        "dramatiq_restart_delay": "0",
+    }
+    broker = RabbitmqBroker(url=broker_url())
+    broker.declare_queue(queue)
+    for entry in campaign.records:
+        broker.enqueue(dramatiq.Message(
+            queue_name=queue, actor_name="process_record",
+            args=(campaign.id, str(campaign.record_path(entry))),
+            kwargs={"taken_at": entry.taken_at, "label": entry.label}, options={},
+        ))
+    postgres = db_engine.dialect.name == "postgresql"
+    workers = []
+    for index in range(2):
+        url = db_url
+        if postgres:  # name each worker's connections, to see when worker 0 is inside a job
+            url = sa.engine.make_url(db_url).update_query_dict(
+                {"application_name": f"{queue}_w{index}"}).render_as_string(hide_password=False)
+        workers.append(_start_worker({**env, "GEARWATCH_DATABASE_URL": url},
+                                     tmp_path / f"worker{index}.log"))
+
+    def worker0_inside_a_job() -> bool:
+        """PostgreSQL: worker 0 holds an open transaction (the job's). SQLite: assume so once
+        both are busy (each job is mostly analysis inside its transaction)."""
+        if not postgres:
+            return True
+        with db_engine.connect() as connection:
+            return bool(connection.execute(
+                sa.text("SELECT count(*) FROM pg_stat_activity WHERE application_name = :name "
+                        "AND xact_start IS NOT NULL"), {"name": f"{queue}_w0"}).scalar())
+
+    def count(model) -> int:  # type: ignore[no-untyped-def]
+        with session_scope(factory) as session:
+            return int(session.scalar(sa.select(sa.func.count()).select_from(model)) or 0)
+
+    try:
+        deadline = time.monotonic() + 240
+        while count(Record) < 5 or not worker0_inside_a_job():
+            assert time.monotonic() < deadline, (tmp_path / "worker0.log").read_text()[-3000:]
+            assert all(w.poll() is None for w in workers), "a worker exited on its own"
+            time.sleep(0.05)
+        killed_at = count(Record)
+        _stop(workers[0], signal.SIGKILL)
+        while count(ResultVersion) < n_records:
+            assert time.monotonic() < deadline, (tmp_path / "worker1.log").read_text()[-3000:]
+            assert workers[1].poll() is None, (tmp_path / "worker1.log").read_text()[-3000:]
+            time.sleep(0.1)
+        time.sleep(1.0)  # a duplicate delivery, if any, would show up now
+    finally:
+        for worker in workers:
+            _stop(worker, signal.SIGTERM)
+        connection = pika.BlockingConnection(pika.URLParameters(broker_url()))
+        channel = connection.channel()
+        left = channel.queue_declare(queue, passive=True).method.message_count
+        for name in (queue, f"{queue}.DQ", f"{queue}.XQ"):
+            channel.queue_delete(name)
+        connection.close()
+        broker.close()
+
+    assert killed_at < n_records and left == 0
+    with session_scope(factory) as session:
+        per_record = session.execute(
+            sa.select(Record.file_name, Record.status, sa.func.count(ResultVersion.id))
+            .join(ResultVersion, ResultVersion.record_id == Record.id, isouter=True)
+            .group_by(Record.id, Record.file_name, Record.status)
+        ).all()
+        assert len(per_record) == n_records
+        assert sorted(name for name, _, _ in per_record) == [
+            f"day{d:02d}.wav" for d in range(n_records)]
+        assert {(status, versions) for _, status, versions in per_record} == {("accepted", 1)}
+        indicators = session.scalar(sa.select(sa.func.count()).select_from(ToothIndicator))
+        assert indicators == n_records * 20 * 3
