@@ -194,7 +194,7 @@ class Tachometer:
 @dataclass(frozen=True)
 class Acquisition:
     sample_rate_hz: float = 20000.0
-    oversampling: int = 8
+    oversampling: int = 16
     """Integrator steps per output sample."""
     anti_alias_cutoff_fraction: float = 0.4
     """Cutoff of the anti-alias low-pass as a fraction of the output rate."""

@@ -46,12 +46,12 @@ N_DOF_MAP = 6
 MAX_PAIRS = 6
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, fastmath=True, inline="always")
 def _overlap(lo: float, hi: float, a: float, b: float) -> float:
     return max(0.0, min(hi, b) - max(lo, a))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, fastmath=True, inline="always")
 def _window_fraction(u: float, travel: float, a: float, b: float) -> float:
     """Fraction of the step's travel [u − travel/2, u + travel/2] that lies in [a, b]."""
     if travel <= 1e-15:
@@ -59,7 +59,7 @@ def _window_fraction(u: float, travel: float, a: float, b: float) -> float:
     return _overlap(u - 0.5 * travel, u + 0.5 * travel, a, b) / travel
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, fastmath=True, inline="always")
 def _shape(x: float, exponent: float) -> float:
     if exponent == 1.0:
         return x
@@ -68,7 +68,7 @@ def _shape(x: float, exponent: float) -> float:
     return x**exponent
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _relief(u: float, p: np.ndarray) -> float:
     start, end, exponent = p[P_START], p[P_END], p[P_RELIEF_EXP]
     removed = 0.0
@@ -80,7 +80,7 @@ def _relief(u: float, p: np.ndarray) -> float:
     return removed
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _build_segments(
     s_m: float,
     travel_m: float,
@@ -110,16 +110,25 @@ def _build_segments(
     pb, u0, start, end = p[P_PB], p[P_U0], p[P_START], p[P_END]
     half_face = p[P_HALF_FACE]
     n_def = defect_wheel.shape[0]
-    q_first = math.ceil((s_m + u0 - end - travel_m) / pb)
-    q_last = math.floor((s_m + u0 - start + travel_m) / pb)
+    inv_pb = 1.0 / pb
+    q_first = math.ceil((s_m + u0 - end - travel_m) * inv_pb)
+    q_last = math.floor((s_m + u0 - start + travel_m) * inv_pb)
+    # Tooth numbers of the first pair, then stepped (avoids an integer division per pair).
+    tooth1 = q_first % pinion_teeth
+    tooth2 = q_first % gear_teeth
     n_seg = 0
     for q in range(q_first, q_last + 1):
+        if q > q_first:
+            tooth1 += 1
+            if tooth1 == pinion_teeth:
+                tooth1 = 0
+            tooth2 += 1
+            if tooth2 == gear_teeth:
+                tooth2 = 0
         u = s_m + u0 - q * pb
         weight = _window_fraction(u, travel_m, start, end)
         if weight <= 0.0:
             continue
-        tooth1 = q % pinion_teeth
-        tooth2 = q % gear_teeth
         base_dev = _relief(u, p) + pitch1[tooth1] + pitch2[tooth2]
         k_line = p[P_KLEN] * kfac1[tooth1] * kfac2[tooth2] * weight
         n_break = 2
@@ -163,7 +172,7 @@ def _build_segments(
     return n_seg
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _contact_sums(
     n_seg: int,
     p0: float,
@@ -178,11 +187,21 @@ def _contact_sums(
     """Integrals of k, k z, k z², k g, k g z and the loaded length over the loaded parts.
 
     δ(z) = p0 + p1 z + gap is linear on each piece, so the loaded part is found exactly.
+    ``sums[6]`` is the margin: the smallest |δ| at the ends of pieces that are wholly in
+    or wholly out of contact (0 if a piece is cut), so a later change of δ smaller than it
+    cannot change the contact set.
     """
     k0 = k1 = k2 = g0 = g1 = length = 0.0
+    margin = 1e300
     for i in range(n_seg):
         za, zb = seg_z0[i], seg_z1[i]
         c = p0 + seg_gap[i]
+        da = c + p1 * za
+        db = c + p1 * zb
+        if (da > 0.0) == (db > 0.0):
+            margin = min(margin, abs(da), abs(db))
+        else:
+            margin = 0.0
         if abs(p1) < 1e-300:
             if c <= 0.0:
                 continue
@@ -210,9 +229,10 @@ def _contact_sums(
     sums[3] = g0
     sums[4] = g1
     sums[5] = length
+    sums[6] = margin
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, fastmath=True, inline="always")
 def _biquad(coef: np.ndarray, state: np.ndarray, x: float) -> float:
     """Transposed direct form II; coef = b0, b1, b2, a1, a2 (a0 = 1)."""
     y = coef[0] * x + state[0]
@@ -221,7 +241,7 @@ def _biquad(coef: np.ndarray, state: np.ndarray, x: float) -> float:
     return y
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def integrate(
     n_warm_steps: int,
     n_samples: int,
@@ -287,6 +307,26 @@ def integrate(
     two_pi = 2.0 * math.pi
     ecc_on = p[P_ECC1] != 0.0 or p[P_ECC2] != 0.0
 
+    # K and C are sparse (shaft couplings and bearings): keep their non-zeros by row.
+    row_start = np.zeros(n + 1, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        for j in range(n):
+            if stiffness[i, j] != 0.0 or damping[i, j] != 0.0:
+                count += 1
+        row_start[i + 1] = count
+    nz_col = np.zeros(count, dtype=np.int64)
+    nz_stiffness = np.zeros(count)
+    nz_damping = np.zeros(count)
+    count = 0
+    for i in range(n):
+        for j in range(n):
+            if stiffness[i, j] != 0.0 or damping[i, j] != 0.0:
+                nz_col[count] = j
+                nz_stiffness[count] = stiffness[i, j]
+                nz_damping[count] = damping[i, j]
+                count += 1
+
     x = x_init.copy()
     v = v_init.copy()
     acc = np.zeros(n)
@@ -316,8 +356,9 @@ def integrate(
     seg_k = np.zeros(max_seg)
     seg_w = np.zeros(max_seg)
     breaks = np.zeros(2 * defect_wheel.shape[0] + 2)
-    sums = np.zeros(6)
-    prev = np.zeros(6)
+    sums = np.zeros(7)
+    prev = np.zeros(7)
+    half_face = p[P_HALF_FACE]
     damp_factor = 1.0 + 2.0 * eta / h
     max_iterations_used = 0
     unsettled = 0
@@ -330,14 +371,17 @@ def integrate(
     force_ref = np.zeros(2)
     n_edges = 0
     tach_phase_prev = x[i_tach] * p[P_TACH_PPR] / two_pi
+    next_level = math.floor(tach_phase_prev) + 1.0
+    p0_used = 0.0
+    p1_used = 0.0
 
     for step in range(n_steps):
         t_next = (step + 1) * h
         # Motor: feed-forward torque + proportional speed loop on the reference speed.
         t_rec = min(max((t_next - n_warm_steps * h) / (n_rec_steps * h), 0.0), 1.0)
-        omega_ref = p[P_SPEED] * (
-            1.0 + p[P_DRIFT] * t_rec + p[P_FLUCT] * math.sin(two_pi * p[P_FLUCT_HZ] * t_next)
-        )
+        omega_ref = p[P_SPEED] * (1.0 + p[P_DRIFT] * t_rec)
+        if p[P_FLUCT] != 0.0:
+            omega_ref += p[P_SPEED] * p[P_FLUCT] * math.sin(two_pi * p[P_FLUCT_HZ] * t_next)
         # Kinematics from the predictor: the mesh position follows the actual rotation.
         th1 = x[i_p] + h * v[i_p] + 0.5 * h * h * acc[i_p]
         th2 = x[i_g] + h * v[i_g] + 0.5 * h * h * acc[i_g]
@@ -357,15 +401,18 @@ def integrate(
         # Constant part of the right-hand side.
         for i in range(n):
             kx_cv = 0.0
-            for j in range(n):
-                kx_cv += damping[i, j] * v[j] - stiffness[i, j] * x[j]
+            for nz in range(row_start[i], row_start[i + 1]):
+                j = nz_col[nz]
+                kx_cv += nz_damping[nz] * v[j] - nz_stiffness[nz] * x[j]
             r[i] = mass_diag[i] * (4.0 / h * v[i] + acc[i]) + kx_cv
         r[i_motor] += p[P_TORQUE_FF] + p[P_CONTROL_GAIN] * omega_ref
-        if i_load >= 0:
+        load_torque = p[P_LOAD]
+        if p[P_LOAD_FLUCT] != 0.0:
             th_load = x[i_load] + h * v[i_load]
-            r[i_load] -= p[P_LOAD] * (
-                1.0 + p[P_LOAD_FLUCT] * math.cos(p[P_LOAD_ORDER] * th_load + p[P_LOAD_PHASE])
+            load_torque *= 1.0 + p[P_LOAD_FLUCT] * math.cos(
+                p[P_LOAD_ORDER] * th_load + p[P_LOAD_PHASE]
             )
+        r[i_load] -= load_torque
         p0n = 0.0
         p1n = 0.0
         w0 = 0.0
@@ -394,6 +441,10 @@ def integrate(
         iterations = 0
         settled = False
         for it in range(12):
+            if it > 0 and abs(p0e - p0_used) + abs(p1e - p1_used) * half_face < prev[6]:
+                # δ moved less than the margin: the contact set cannot have changed.
+                settled = True
+                break
             _contact_sums(n_seg, p0e, p1e, seg_z0, seg_z1, seg_gap, seg_k, seg_w, sums)
             if it > 0:
                 same = True
@@ -403,8 +454,10 @@ def integrate(
                 if same:
                     settled = True
                     break
-            for k in range(6):
+            for k in range(7):
                 prev[k] = sums[k]
+            p0_used = p0e
+            p1_used = p1e
             iterations = it + 1
             k0, k1, k2, g0, g1 = sums[0], sums[1], sums[2], sums[3], sums[4]
             alpha0 = -(k0 * p0n + k1 * p1n + g0) + eta * (k0 * w0 + k1 * w1)
@@ -479,11 +532,13 @@ def integrate(
 
         # Tachometer: reference crossings of the tach shaft, interpolated within the step.
         tach_phase = x[i_tach] * p[P_TACH_PPR] / two_pi
-        level = math.floor(tach_phase)
-        if level > math.floor(tach_phase_prev) and n_edges < edges.shape[0]:
-            frac = (level - tach_phase_prev) / (tach_phase - tach_phase_prev)
-            edges[n_edges] = (step + frac - n_warm_steps) * h
-            n_edges += 1
+        if tach_phase >= next_level:
+            level = math.floor(tach_phase)
+            if n_edges < edges.shape[0]:
+                frac = (level - tach_phase_prev) / (tach_phase - tach_phase_prev)
+                edges[n_edges] = (step + frac - n_warm_steps) * h
+                n_edges += 1
+            next_level = level + 1.0
         tach_phase_prev = tach_phase
 
         if is_sample:
