@@ -46,6 +46,8 @@ True
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numba
 import numpy as np
 import scipy.fft
@@ -58,6 +60,7 @@ __all__ = [
     "angle_grid_times",
     "angle_lowpass",
     "angle_resample",
+    "angle_resample_shafts",
     "samples_per_revolution",
 ]
 
@@ -429,6 +432,53 @@ def angle_resample(
     >>> revs.shape
     (39, 128)
     """
+    return angle_resample_shafts(
+        signal,
+        sample_rate_hz,
+        pulse_times_s,
+        pulses_per_rev,
+        [(samples_per_rev, shaft_ratio)],
+        axis=axis,
+    )[0]
+
+
+def angle_resample_shafts(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    pulse_times_s: ArrayLike,
+    pulses_per_rev: int,
+    targets: Sequence[tuple[int, float]],
+    *,
+    axis: int = -1,
+) -> list[FloatArray]:
+    """:func:`angle_resample` onto several shafts at once, sharing the spline prefilter.
+
+    Parameters
+    ----------
+    signal, sample_rate_hz, pulse_times_s, pulses_per_rev, axis
+        As for :func:`angle_resample`.
+    targets : sequence of (samples_per_rev, shaft_ratio)
+        One grid per target shaft, e.g. ``[(20 * 64, 1.0), (21 * 64, 20 / 21)]`` for the pinion
+        and the gear of a 20/21 pair with the tach on the pinion.
+
+    Returns
+    -------
+    list of ndarray
+        One array per target, exactly as :func:`angle_resample` returns it. Targets needing the
+        same anti-alias filter (or none) share one prefiltered copy of the signal.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fs = 8000.0
+    >>> x = np.random.default_rng(0).standard_normal(16000)
+    >>> pulses = np.arange(0, 1.99, 1 / 20)
+    >>> pinion, gear = angle_resample_shafts(x, fs, pulses, 1, [(640, 1.0), (672, 20 / 21)])
+    >>> pinion.shape, gear.shape
+    ((39, 640), (37, 672))
+    >>> bool(np.array_equal(gear, angle_resample(x, fs, pulses, 1, 672, shaft_ratio=20 / 21)))
+    True
+    """
     if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
         raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz}")
     x = np.moveaxis(np.asarray(signal, dtype=np.float64), axis, -1)
@@ -441,27 +491,35 @@ def angle_resample(
         raise ValueError(
             f"first pulse at {t[0]:.6g} s is outside the record [0, {duration_s:.6g}] s"
         )
-
-    times = angle_grid_times(
-        t, pulses_per_rev, samples_per_rev, shaft_ratio=shaft_ratio, record_duration_s=duration_s
-    )
-    n_revs = times.shape[0]
-    if n_revs < 1:
-        raise ValueError(
-            "less than one whole revolution of the target shaft between the first pulse and the "
-            "end of the record or of the pulses"
+    longest_interval_s = float(np.max(np.diff(t)))
+    coefficients: dict[float | None, FloatArray] = {}
+    results = []
+    for samples_per_rev, shaft_ratio in targets:
+        times = angle_grid_times(
+            t,
+            pulses_per_rev,
+            samples_per_rev,
+            shaft_ratio=shaft_ratio,
+            record_duration_s=duration_s,
         )
-
-    # Lowest angular sampling rate (samples/s) over the record, from the longest pulse interval.
-    min_target_rev_per_s = shaft_ratio / (pulses_per_rev * float(np.max(np.diff(t))))
-    min_angular_rate_hz = samples_per_rev * min_target_rev_per_s
-    if min_angular_rate_hz < sample_rate_hz:
-        x = angle_lowpass(x, sample_rate_hz, 0.5 * min_angular_rate_hz, axis=-1)
-
-    rows = np.array(x.reshape(-1, n), dtype=np.float64, order="C")  # a copy: filtered in place
-    _bspline5_prefilter(rows)
-    flat_times = times.ravel()
-    out = np.empty((rows.shape[0], flat_times.size))
-    for r in range(rows.shape[0]):
-        _bspline5_at(rows[r], flat_times, out[r], float(sample_rate_hz))
-    return out.reshape((*x.shape[:-1], n_revs, int(samples_per_rev)))
+        n_revs = times.shape[0]
+        if n_revs < 1:
+            raise ValueError(
+                "less than one whole revolution of the target shaft between the first pulse and "
+                "the end of the record or of the pulses"
+            )
+        # Lowest angular sampling rate (samples/s) over the record, from the longest interval.
+        min_angular_rate_hz = samples_per_rev * shaft_ratio / (pulses_per_rev * longest_interval_s)
+        cutoff_hz = 0.5 * min_angular_rate_hz if min_angular_rate_hz < sample_rate_hz else None
+        if cutoff_hz not in coefficients:
+            filtered = x if cutoff_hz is None else angle_lowpass(x, sample_rate_hz, cutoff_hz)
+            rows = np.array(filtered.reshape(-1, n), dtype=np.float64, order="C")  # a copy
+            _bspline5_prefilter(rows)
+            coefficients[cutoff_hz] = rows
+        rows = coefficients[cutoff_hz]
+        flat_times = times.ravel()
+        out = np.empty((rows.shape[0], flat_times.size))
+        for r in range(rows.shape[0]):
+            _bspline5_at(rows[r], flat_times, out[r], float(sample_rate_hz))
+        results.append(out.reshape((*x.shape[:-1], n_revs, int(samples_per_rev))))
+    return results

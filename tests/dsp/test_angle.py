@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from dsp.angle import angle_grid_times, angle_lowpass, angle_resample, samples_per_revolution
+from dsp.angle import (
+    angle_grid_times,
+    angle_lowpass,
+    angle_resample,
+    angle_resample_shafts,
+    samples_per_revolution,
+)
 
 FS = 20_000.0
 
@@ -225,3 +231,14 @@ def test_violent_speed_change_falls_back_to_monotone_phase_model() -> None:
     assert times.shape == (8, 1000)
     assert np.all(np.diff(times.ravel()) > 0)
     np.testing.assert_allclose(times[:, 0], pulses[:-1])  # still through every pulse
+
+
+def test_several_shafts_at_once_equal_separate_calls() -> None:
+    # Pinion (no filter), gear (no filter, shares the prefilter) and a coarse grid that needs
+    # the anti-alias filter (its own prefiltered copy).
+    _, _, x, pulses = run_up_record(duration_s=2.0)
+    targets = [(1280, 1.0), (1344, 20 / 21), (256, 1.0)]
+    together = angle_resample_shafts(np.stack([x, -x]), FS, pulses, 1, targets)
+    for (spr, ratio), out in zip(targets, together, strict=True):
+        alone = angle_resample(np.stack([x, -x]), FS, pulses, 1, spr, shaft_ratio=ratio)
+        np.testing.assert_array_equal(out, alone)
