@@ -22,7 +22,7 @@ from dsp.metrics import crest_factor, envelope_variance, gear_metrics, kurtosis,
 from dsp.tach import TachAnalysis, TachometerError, analyze_tachometer, pulse_times_from_waveform
 from dsp.teeth import (
     per_tooth_difference_stats,
-    per_tooth_mci_depth,
+    per_tooth_well_depth,
     tooth_pitch_angles_deg,
     worst_tooth,
 )
@@ -314,7 +314,9 @@ def _analyze_channel(
     mci = moving_cepstrum_integral(
         average, window, form=params.mci_form, median_width=params.mci_median_width
     )
-    depths = per_tooth_mci_depth(mci.filtered, pinion_teeth, rig.tooth1_pitch_angle_deg)
+    depths = per_tooth_well_depth(
+        mci.filtered, pinion_teeth, rig.tooth1_pitch_angle_deg, window_samples=window
+    )
     energy, sector_kurtosis = per_tooth_difference_stats(
         difference, pinion_teeth, rig.tooth1_pitch_angle_deg
     )

@@ -63,7 +63,9 @@ class ToothResult:
     pitch_angle_deg: float
     """Pinion angle after the tach reference edge at which this tooth passes the pitch point."""
     mci_depth: float
-    """Depth of the median-filtered MCI in this tooth's sector below the revolution's median, in nepers."""
+    """MCI well depth of this tooth in nepers: the median-filtered MCI's median minus its mean
+    over the tooth's sector, capped by the fall of the curve where a well starting at this tooth
+    would begin (:func:`dsp.teeth.per_tooth_well_depth`). Amplitude-free: comparable across days."""
     diff_energy: float
     """Energy of the difference signal in this tooth's sector, relative to the mean sector energy."""
     diff_kurtosis: float

@@ -10,6 +10,8 @@ from dsp.mci import moving_cepstrum_integral
 from dsp.teeth import (
     per_tooth_difference_stats,
     per_tooth_mci_depth,
+    per_tooth_well_depth,
+    per_tooth_well_onset_depth,
     tooth_at_angle,
     tooth_pitch_angles_deg,
     tooth_sector_masks,
@@ -227,3 +229,37 @@ def test_a_long_transfer_path_needs_the_delay_to_find_the_right_tooth() -> None:
     assert worst_tooth(per_tooth_mci_depth(filtered, 20, 0.0)) == 10
     delay_deg = 360.0 * 46 / 1280
     assert worst_tooth(per_tooth_mci_depth(filtered, 20, 0.0, transfer_delay_deg=delay_deg)) == 9
+
+
+# --- mci_depth as reported: the ringing tail of a well is not a well on the next teeth --------
+
+
+def test_leading_edge_depth_scores_the_tooth_where_a_well_starts() -> None:
+    curve = np.zeros(80)
+    curve[36:64] = -1.5  # well starts W/2 = 8 samples before tooth 3's pitch angle (144°)
+    onset = per_tooth_well_onset_depth(curve, 5, 36.0, window_samples=16)
+    assert np.argmax(onset) == 2
+    assert onset[2] == pytest.approx(1.5)
+    assert np.all(np.delete(onset, 2) <= 1e-12)
+
+
+def test_reported_depth_keeps_the_spalled_tooth_and_drops_the_ringing_tail() -> None:
+    rng = np.random.default_rng(3)
+    hits_sector = hits_reported = 0
+    tail_ratios = []
+    for spall_tooth in range(1, 21, 3):
+        # a lightly damped, low-frequency transfer path: the response rings for > 1 pitch
+        case = spalled_average(
+            rng, spall_tooth=spall_tooth, spall_amplitude=0.5, noise_rms=0.01,
+            resonance_cycles_per_sample=0.06, damping_ratio=0.02, tooth1_pitch_angle_deg=12.0,
+        )
+        mci = moving_cepstrum_integral(case.signal, 64).filtered
+        sector = per_tooth_mci_depth(mci, 20, 12.0)
+        reported = per_tooth_well_depth(mci, 20, 12.0, window_samples=64)
+        hits_sector += int(np.argmax(sector) + 1 == spall_tooth)
+        hits_reported += int(np.argmax(reported) + 1 == spall_tooth)
+        following = [reported[spall_tooth % 20], reported[(spall_tooth + 1) % 20]]
+        tail_ratios.append(max(following) / reported[spall_tooth - 1])
+    assert hits_reported == 7
+    assert hits_sector < 7  # the sector mean is fooled by the tail: this case is not trivial
+    assert max(tail_ratios) < 0.5
