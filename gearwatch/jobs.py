@@ -210,7 +210,9 @@ def process_file(
             rejected_with = (record.quality or {}).get("rejected_parameters")
             if rejected_with is not None and _same_parameters(rejected_with, expected):
                 return JobResult(record.id, sha256, "unchanged", record.status, record.reason)
-        return _analyze_and_store(session, record, campaign, params, analyze, stored_campaign.id)
+        attempt = _analyze(session, Path(record.raw_location), sha256, record.taken_at,
+                           campaign, params, analyze, stored_campaign.id)
+        return _store(session, record, attempt, campaign, params)
 
     if taken_at is None:
         taken_at = _taken_at_from_manifest(path, campaign)
@@ -218,19 +220,20 @@ def process_file(
         taken_at = parse_taken_at(taken_at)
     kept = raw_store.keep(path, sha256, record_suffix(path))
     provisional = taken_at or dt.datetime.fromtimestamp(path.stat().st_mtime, dt.UTC)
+    # Analyse first, write after: the write transaction (a database-wide lock on SQLite)
+    # stays short and never spans the signal processing.
+    attempt = _analyze(session, kept, sha256, provisional, campaign, params, analyze,
+                       stored_campaign.id, time_from_metadata=taken_at is None)
     record = records.add(
         stored_campaign,
         sha256=sha256,
         file_name=file_name or path.name,
         raw_location=str(kept),
-        taken_at=provisional,
+        taken_at=attempt.taken_at,
         size_bytes=path.stat().st_size,
         label=label or _label_from_manifest(path, campaign),
     )
-    return _analyze_and_store(
-        session, record, campaign, params, analyze, stored_campaign.id,
-        time_from_metadata=taken_at is None,
-    )
+    return _store(session, record, attempt, campaign, params)
 
 
 def _current_id(records: Any, record_id: int) -> int | None:
@@ -256,43 +259,74 @@ def _label_from_manifest(path: Path, campaign: CampaignConfig) -> str:
     return "" if entry is None else entry.label
 
 
-def _analyze_and_store(
+@dataclasses.dataclass
+class _Attempt:
+    """What reading and analysing one raw file gave: an analysis or the reason it failed."""
+
+    taken_at: dt.datetime
+    analysis: RecordAnalysis | None = None
+    reason: str = ""
+    error: str = ""
+    internal: bool = False
+
+
+def _analyze(
     session: Session,
-    record: Any,
+    raw_location: Path,
+    sha256: str,
+    taken_at: dt.datetime,
     campaign: CampaignConfig,
     params: AnalysisParameters,
     analyze: Analyzer,
     campaign_id: int,
     *,
     time_from_metadata: bool = False,
-) -> JobResult:
+) -> _Attempt:
+    """Read the kept raw file and run the chain; never raises for bad input or a bug."""
     from ingest.sources import read_record
+
+    attempt = _Attempt(taken_at)
+    try:
+        data = read_record(raw_location, campaign)
+        if time_from_metadata and data.metadata.get("taken_at"):
+            attempt.taken_at = parse_taken_at(data.metadata["taken_at"])
+        baselines = _baseline_stats(session, campaign_id, campaign, attempt.taken_at)
+        attempt.analysis = analyze(data, campaign, params, sha256, baselines)
+    except InputError as error:
+        attempt.reason, attempt.error = _one_line(error), type(error).__name__
+    except Exception as error:
+        logger.exception("internal error while analysing %s", raw_location)
+        attempt.reason = f"internal error: {type(error).__name__}: {_one_line(error)}"
+        attempt.error, attempt.internal = type(error).__name__, True
+    return attempt
+
+
+def _store(
+    session: Session,
+    record: Any,
+    attempt: _Attempt,
+    campaign: CampaignConfig,
+    params: AnalysisParameters,
+) -> JobResult:
+    """Write the outcome of an attempt: rejection, or results (+ alarms on first acceptance)."""
     from storage.evaluation import evaluate_record
     from storage.repositories import RecordRepository, _json_safe
 
     records = RecordRepository(session)
-    first_acceptance = record.status != "accepted"
-    expected = _json_safe(_expected_parameters(params, campaign))
-    try:
-        data = read_record(record.raw_location, campaign)
-        if time_from_metadata and data.metadata.get("taken_at"):
-            record.taken_at = parse_taken_at(data.metadata["taken_at"])
-        baselines = _baseline_stats(session, campaign_id, campaign, record.taken_at)
-        analysis = analyze(data, campaign, params, record.sha256, baselines)
-    except InputError as error:
-        records.mark_rejected(record, _one_line(error))
-        record.quality = {"rejected_parameters": expected, "error": type(error).__name__}
-        session.flush()
-        return JobResult(record.id, record.sha256, "rejected", "rejected", record.reason)
-    except Exception as error:
-        logger.exception("internal error while analysing %s", record.raw_location)
-        records.mark_rejected(
-            record, f"internal error: {type(error).__name__}: {_one_line(error)}"
-        )
-        record.quality = {"internal_error": True, "error": type(error).__name__}
+    analysis = attempt.analysis
+    if analysis is None:
+        records.mark_rejected(record, attempt.reason)
+        if attempt.internal:
+            record.quality = {"internal_error": True, "error": attempt.error}
+        else:
+            record.quality = {
+                "rejected_parameters": _json_safe(_expected_parameters(params, campaign)),
+                "error": attempt.error,
+            }
         session.flush()
         return JobResult(record.id, record.sha256, "rejected", "rejected", record.reason)
 
+    first_acceptance = record.status != "accepted"
     if not first_acceptance and records.result_for_parameters(
         record.id, analysis.provenance.parameters
     ) is not None:
@@ -337,6 +371,6 @@ def reprocess_record(
     ):
         return JobResult(record.id, record.sha256, "unchanged", record.status,
                          result_id=_current_id(records, record.id))
-    return _analyze_and_store(
-        session, record, campaign, params, analyzer or pipeline_analyzer, record.campaign_id
-    )
+    attempt = _analyze(session, Path(record.raw_location), record.sha256, record.taken_at,
+                       campaign, params, analyzer or pipeline_analyzer, record.campaign_id)
+    return _store(session, record, attempt, campaign, params)
