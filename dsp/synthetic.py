@@ -169,42 +169,73 @@ class SyntheticRecord:
             self.speed_fluctuation_period_s,
         )
 
-    def _periodic_part(
-        self, own: ComplexArray, other: ComplexArray, own_teeth: int, other_teeth: int
-    ) -> ComplexArray:
-        """Coefficients (own-shaft orders) of everything periodic in the own shaft's angle.
+    def _average(
+        self,
+        own: ComplexArray,
+        other: ComplexArray,
+        own_teeth: int,
+        other_teeth: int,
+        samples_per_rev: int,
+        n_revs: int | None,
+    ) -> FloatArray:
+        """Noise-free average over own-shaft revolutions on the grid ``j / samples_per_rev``.
 
-        A component at order ``m`` of the other shaft is at own order ``m·own_teeth/other_teeth``
-        (both shafts turn through the same mesh angle); it belongs here when that is an integer.
+        A component at order ``m`` of the other shaft is at own order ``q = m·own_teeth /
+        other_teeth`` (both shafts turn through the same mesh angle). Averaged over revolutions
+        ``r = 0 .. n-1`` it becomes ``c·S·exp(2πi q j/N)`` with ``S = mean_r exp(2πi q r)``:
+        ``S = 1`` when ``q`` is an integer (periodic in the own shaft), otherwise ``S → 0`` as
+        ``n`` grows (exactly 0 over whole hunting periods). ``n_revs=None`` is that limit.
         """
-        total = own.copy()
-        for m in np.flatnonzero(other):
-            if (m * own_teeth) % other_teeth == 0:
-                k = m * own_teeth // other_teeth
-                if k >= total.size:
-                    total = np.concatenate([total, np.zeros(k + 1 - total.size, complex)])
-                total[k] += other[m]
-        return total
+        angles = np.arange(samples_per_rev) / samples_per_rev
+        values = _series_at(own, angles)
+        orders = np.flatnonzero(other)
+        if orders.size == 0:
+            return values
+        own_orders = orders * own_teeth / other_teeth
+        integer = (orders * own_teeth) % other_teeth == 0
+        if n_revs is None:
+            weights = integer.astype(np.float64).astype(np.complex128)
+        else:
+            if n_revs < 1:
+                raise ValueError(f"n_revs must be >= 1, got {n_revs}")
+            r = np.arange(n_revs)
+            weights = np.exp(2j * np.pi * np.outer(own_orders, r)).mean(axis=1)
+            weights[integer] = 1.0  # exact, without rounding
+        phases = np.exp(2j * np.pi * np.outer(angles, own_orders))
+        return np.asarray(values + (phases @ (other[orders] * weights)).real, dtype=np.float64)
 
-    def true_pinion_average(self, samples_per_rev: int) -> FloatArray:
+    def true_pinion_average(self, samples_per_rev: int, n_revs: int | None = None) -> FloatArray:
         """Exact noise-free pinion synchronous average on ``samples_per_rev`` grid angles.
 
-        Grid angle ``j / samples_per_rev`` revolutions after the reference pulse. This is the
-        limit of the average; the gear-shaft component cancels exactly only over whole hunting
-        periods (``Z2 / gcd(Z1, Z2)`` pinion revolutions).
+        Grid angle ``j / samples_per_rev`` pinion revolutions after the reference pulse. With
+        ``n_revs=None`` this is the limit of the average (mesh, spall, and any gear component
+        that is also pinion-periodic); the gear-shaft component cancels exactly only over whole
+        hunting periods (``Z2 / gcd(Z1, Z2)`` pinion revolutions). With ``n_revs`` it is the exact
+        average of the first ``n_revs`` pinion revolutions, including what is left of the
+        gear-shaft component.
         """
-        coeffs = self._periodic_part(
-            self.pinion_coefficients, self.gear_coefficients, self.pinion_teeth, self.gear_teeth
+        return self._average(
+            self.pinion_coefficients,
+            self.gear_coefficients,
+            self.pinion_teeth,
+            self.gear_teeth,
+            samples_per_rev,
+            n_revs,
         )
-        return _series_at(coeffs, np.arange(samples_per_rev) / samples_per_rev)
 
-    def true_gear_average(self, samples_per_rev: int) -> FloatArray:
+    def true_gear_average(self, samples_per_rev: int, n_revs: int | None = None) -> FloatArray:
         """Exact noise-free gear synchronous average (mesh, gear component, gear-periodic part of
-        the spall) on ``samples_per_rev`` grid angles after the reference pulse."""
-        coeffs = self._periodic_part(
-            self.gear_coefficients, self.pinion_coefficients, self.gear_teeth, self.pinion_teeth
+        the spall) on ``samples_per_rev`` grid angles after the reference pulse; with ``n_revs``,
+        the exact average of the first ``n_revs`` gear revolutions (what is left of the spall
+        included)."""
+        return self._average(
+            self.gear_coefficients,
+            self.pinion_coefficients,
+            self.gear_teeth,
+            self.pinion_teeth,
+            samples_per_rev,
+            n_revs,
         )
-        return _series_at(coeffs, np.arange(samples_per_rev) / samples_per_rev)
 
 
 def _pinion_angle_rev(

@@ -34,6 +34,24 @@ def test_true_pinion_average_matches_estimate(spalled) -> None:
     assert truth.std() > 0.5
 
 
+@pytest.mark.parametrize("n_revs", [10, 33])
+def test_finite_average_includes_the_gear_leftover(spalled, n_revs: int) -> None:
+    # Over a number of revolutions that is not a multiple of 21 the gear component does not
+    # cancel; true_pinion_average(spr, n_revs) is the exact finite average (leftover included).
+    rec = spalled
+    revs = angle_resample(rec.acceleration, rec.sample_rate_hz, rec.pulse_times_s, 1, SPR)
+    estimate = synchronous_average(revs[:n_revs])
+    rms = lambda e: float(np.sqrt(np.mean(e**2)))  # noqa: E731
+    assert rms(estimate - rec.true_pinion_average(SPR, n_revs)) < 2e-5
+    assert rms(estimate - rec.true_pinion_average(SPR)) > 1e-2  # the leftover is real
+    gear_revs = angle_resample(
+        rec.acceleration, rec.sample_rate_hz, rec.pulse_times_s, 1, 21 * 64, shaft_ratio=20 / 21
+    )
+    gear_estimate = synchronous_average(gear_revs[:n_revs])
+    assert rms(gear_estimate - rec.true_gear_average(21 * 64, n_revs)) < 2e-5
+    assert rms(gear_estimate - rec.true_gear_average(21 * 64)) > 1e-3
+
+
 def test_true_gear_average_matches_estimate(spalled) -> None:
     rec = spalled
     revs = angle_resample(
