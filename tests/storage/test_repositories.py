@@ -453,3 +453,18 @@ def test_audit_log_newest_first_with_filters(db_session: Session) -> None:
     assert entries[1].details == {"comment": "ok", "score": None}
     assert [e.action for e in audit.list(who="alice")] == ["alarm.acknowledge"]
     assert audit.list(action="nothing") == []
+
+
+def test_out_of_order_record_is_left_out_of_the_evaluation(db_session: Session,
+                                                            caplog: pytest.LogCaptureFixture
+                                                            ) -> None:
+    campaign = CampaignRepository(db_session).ensure(campaign_config())
+    AlarmRuleRepository(db_session).create(campaign.rig_id, "mci_depth", baseline_records=2,
+                                           persistence=1)
+    for day in (0, 1, 5):
+        ingest_day(db_session, campaign, day, 0.1)
+    with caplog.at_level("WARNING", logger="storage.evaluation"):
+        assert ingest_day(db_session, campaign, 3, 9.0) == []  # older than day 5: skipped
+    assert "not newer than" in caplog.text
+    assert AlarmRepository(db_session).count() == 0
+    assert ingest_day(db_session, campaign, 6, 9.0) != []  # in order again: evaluated
