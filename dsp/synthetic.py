@@ -45,7 +45,7 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numba
 import numpy as np
@@ -128,6 +128,8 @@ class SyntheticRecord:
     pinion_coefficients: ComplexArray = field(repr=False)
     gear_coefficients: ComplexArray = field(repr=False)
     initial_pinion_angle_rev: float = 0.0
+    parameters: dict[str, Any] = field(default_factory=dict, repr=False)
+    """Every argument :func:`synthetic_gear_record` was called with."""
 
     @property
     def tach_shaft_ratio(self) -> float:
@@ -359,6 +361,7 @@ def synthetic_gear_record(
     >>> bool(np.allclose(rec.acceleration, expected))
     True
     """
+    parameters = dict(locals())  # the arguments, before any other local exists
     if not duration_s > 0 or not sample_rate_hz > 0:
         raise ValueError("duration_s and sample_rate_hz must be positive")
     if pinion_teeth < 1 or gear_teeth < 1:
@@ -469,4 +472,5 @@ def synthetic_gear_record(
         pinion_coefficients=pinion,
         gear_coefficients=gear,
         initial_pinion_angle_rev=float(angle0_rev),
+        parameters=parameters,
     )

@@ -34,6 +34,7 @@ __all__ = [
     "analyze_tachometer",
     "pulse_times_from_waveform",
     "repair_pulse_times",
+    "shaft_ratios",
     "waveform_levels",
 ]
 
@@ -108,6 +109,30 @@ class TachAnalysis:
     max_rpm: float
     speed_variation: float
     whole_revolutions: int
+
+
+def shaft_ratios(
+    tach_shaft: Literal["pinion", "gear"], pinion_teeth: int, gear_teeth: int
+) -> tuple[float, float]:
+    """Pinion and gear revolutions per revolution of the tach shaft.
+
+    These are the ``shaft_ratio`` arguments of :func:`dsp.angle.angle_resample` for the pinion
+    and the gear grids, and the factors from the tach-shaft speed to each shaft's speed.
+
+    Examples
+    --------
+    >>> shaft_ratios("pinion", 20, 21)
+    (1.0, 0.9523809523809523)
+    >>> shaft_ratios("gear", 20, 21)
+    (1.05, 1.0)
+    """
+    if pinion_teeth < 1 or gear_teeth < 1:
+        raise ValueError(f"tooth counts must be >= 1, got {pinion_teeth}, {gear_teeth}")
+    if tach_shaft == "pinion":
+        return 1.0, pinion_teeth / gear_teeth
+    if tach_shaft == "gear":
+        return gear_teeth / pinion_teeth, 1.0
+    raise ValueError(f"tach_shaft must be 'pinion' or 'gear', got {tach_shaft!r}")
 
 
 # --------------------------------------------------------------------------- edge detection

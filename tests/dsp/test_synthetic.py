@@ -186,6 +186,10 @@ def test_reproducible_and_seeded() -> None:
     c = synthetic_gear_record(duration_s=0.2, seed=2)
     np.testing.assert_array_equal(a.acceleration, b.acceleration)
     assert not np.array_equal(a.acceleration, c.acceleration)
+    assert a.parameters["seed"] == 1 and a.parameters["duration_s"] == 0.2
+    assert a.parameters["mesh_harmonic_amplitudes"] == (1.0, 0.5, 0.25)
+    rebuilt = synthetic_gear_record(**a.parameters)
+    np.testing.assert_array_equal(rebuilt.acceleration, a.acceleration)
 
 
 @pytest.mark.parametrize(

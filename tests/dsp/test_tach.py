@@ -13,6 +13,7 @@ from dsp.tach import (
     analyze_tachometer,
     pulse_times_from_waveform,
     repair_pulse_times,
+    shaft_ratios,
     waveform_levels,
 )
 
@@ -237,3 +238,10 @@ def test_refusals_have_one_line_reasons(pulses: np.ndarray, reason: str) -> None
 def test_bad_pulses_per_rev() -> None:
     with pytest.raises(TachometerError, match="pulses per revolution"):
         analyze_tachometer(np.arange(30) * 0.1, 0)
+
+
+def test_shaft_ratios() -> None:
+    assert shaft_ratios("pinion", 20, 21) == (1.0, 20 / 21)
+    assert shaft_ratios("gear", 20, 21) == (21 / 20, 1.0)
+    with pytest.raises(ValueError, match="tach_shaft"):
+        shaft_ratios("crank", 20, 21)  # type: ignore[arg-type]

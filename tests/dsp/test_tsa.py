@@ -148,3 +148,13 @@ def test_difference_signal_of_a_spalled_pinion_keeps_the_spall() -> None:
     peak_deg = np.argmax(np.abs(diff)) * 360 / 1280
     assert rec.spall_pitch_angle_deg is not None
     assert 0 <= peak_deg - (rec.spall_pitch_angle_deg - 18 / 2) < 18
+
+
+@pytest.mark.parametrize("module", ["dsp.tach", "dsp.angle", "dsp.tsa", "dsp.synthetic"])
+def test_docstring_examples_run(module: str) -> None:
+    import doctest
+    import importlib
+
+    result = doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 0
+    assert result.failed == 0
