@@ -190,9 +190,7 @@ def manifest_dict(
 ) -> dict[str, Any]:
     """The ingest manifest (exact keys) for records simulated with ``model``'s rig."""
     tach = model.tachometer
-    channels = [
-        {"name": s.name, "kind": "accelerometer", "unit": "m/s^2"} for s in model.sensors
-    ]
+    channels = [{"name": s.name, "kind": "accelerometer", "unit": "m/s^2"} for s in model.sensors]
     channels.append({"name": tach.name, "kind": "tachometer", "unit": "V"})
     return {
         "campaign": {"id": campaign_id, "description": description},
@@ -277,4 +275,3 @@ def write_campaign(
     path = out / "campaign.toml"
     path.write_text(tomli_w.dumps(manifest), encoding="utf-8")
     return path
-

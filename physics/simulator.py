@@ -273,9 +273,9 @@ def _tach_waveform(
     j = np.searchsorted(edges_s, sample_times_s + 0.5 * rise_s, side="right") - 1
     valid = j >= 0
     jj = np.clip(j, 0, None)
-    wave[valid] = high_v * (
-        ramp(sample_times_s - edges_s[jj]) - ramp(sample_times_s - falls[jj])
-    )[valid]
+    wave[valid] = (
+        high_v * (ramp(sample_times_s - edges_s[jj]) - ramp(sample_times_s - falls[jj]))[valid]
+    )
     return wave
 
 
@@ -323,9 +323,7 @@ def simulate(
     n_rec = round(seconds * fs_out)
     speed = op.speed_rpm * 2 * math.pi / 60
     asm = _assemble(model, geo, speed, keep_unexcited_dofs)
-    a_matrix = (
-        np.diag(asm.mass) * (4.0 / h**2) + asm.damping * (2.0 / h) + asm.stiffness
-    )
+    a_matrix = np.diag(asm.mass) * (4.0 / h**2) + asm.damping * (2.0 / h) + asm.stiffness
     a_inv = np.linalg.inv(a_matrix)
 
     rb1, rb2 = geo.pinion_base_radius_m, geo.gear_base_radius_m
@@ -387,14 +385,22 @@ def simulate(
     for s_i, sensor in enumerate(sensors):
         for m_i, mode in enumerate(sensor.modes):
             bz, az = _mode_filter(mode, fs_int)
-            mode_coef[s_i, m_i] = [bz[0] / az[0], bz[1] / az[0], bz[2] / az[0], az[1] / az[0], az[2] / az[0]]
+            mode_coef[s_i, m_i] = [
+                bz[0] / az[0],
+                bz[1] / az[0],
+                bz[2] / az[0],
+                az[1] / az[0],
+                az[2] / az[0],
+            ]
     sos = _anti_alias_sos(acq.anti_alias_order, acq.anti_alias_cutoff_fraction * fs_out, fs_int)
     anti_alias = np.ascontiguousarray(sos[:, [0, 1, 2, 4, 5]] / sos[:, [3]])
     sensor_source = np.array([0 if s.source == "pinion" else 1 for s in sensors], dtype=np.int64)
 
     duration = (n_warm + n_rec * acq.oversampling) * h
     max_speed = speed * (1 + abs(op.speed_drift_fraction) + abs(op.speed_fluctuation_fraction))
-    max_edges = int(1.5 * duration * max_speed / (2 * math.pi) * model.tachometer.pulses_per_rev) + 16
+    max_edges = (
+        int(1.5 * duration * max_speed / (2 * math.pi) * model.tachometer.pulses_per_rev) + 16
+    )
     edges = np.zeros(max_edges)
     out = np.zeros((kernel.N_OUT, n_rec))
     sensor_out = np.zeros((len(sensors), n_rec))

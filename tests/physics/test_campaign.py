@@ -55,7 +55,10 @@ def test_campaign_directory_reads_back_through_ingest(tmp_path: Path, record_for
     campaign = load_manifest(manifest_path)
     assert campaign.rig.pinion_teeth == 20 and campaign.rig.gear_teeth == 21
     assert [c.name for c in campaign.channels] == ["acc", "tach"]
-    assert [r.taken_at for r in campaign.records] == ["2026-03-01T09:00:00Z", "2026-03-02T09:00:00Z"]
+    assert [r.taken_at for r in campaign.records] == [
+        "2026-03-01T09:00:00Z",
+        "2026-03-02T09:00:00Z",
+    ]
     plan = campaign_plan(days=2, onset_day=2, seed=3)
     for entry, day in zip(campaign.records, plan, strict=True):
         record = read_record(campaign.record_path(entry), campaign)

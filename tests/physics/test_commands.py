@@ -12,7 +12,9 @@ from gearwatch.cli import main
 from physics.config import GearPairModel, model_from_toml
 
 
-def test_simulate_writes_hdf5_with_rate_and_channels(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_simulate_writes_hdf5_with_rate_and_channels(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "rec.h5"
     assert main(["simulate", str(out), "--seconds", "0.2", "--seed", "2"]) == 0
     with h5py.File(out) as f:
@@ -22,13 +24,18 @@ def test_simulate_writes_hdf5_with_rate_and_channels(tmp_path: Path, capsys: pyt
     assert "tooth1_pitch_angle_deg = 337.4" in capsys.readouterr().out
 
 
-def test_print_model_round_trips_and_is_accepted(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_print_model_round_trips_and_is_accepted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     assert main(["simulate", "--print-model"]) == 0
     text = capsys.readouterr().out
     assert model_from_toml(text) == GearPairModel()
     model_file = tmp_path / "m.toml"
     model_file.write_text(text.replace("speed_rpm = 1000.0", "speed_rpm = 1500.0"))
-    assert main(["simulate", str(tmp_path / "r.wav"), "--model", str(model_file), "--seconds", "0.1"]) == 0
+    assert (
+        main(["simulate", str(tmp_path / "r.wav"), "--model", str(model_file), "--seconds", "0.1"])
+        == 0
+    )
 
 
 @pytest.mark.parametrize(
@@ -54,7 +61,9 @@ def test_bad_input_is_one_line_and_exit_2(
     assert message in err and len(err.strip().splitlines()) == 1
 
 
-def test_simulate_campaign_refuses_a_non_empty_directory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_simulate_campaign_refuses_a_non_empty_directory(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     (tmp_path / "keep.txt").write_text("x")
     assert main(["simulate-campaign", str(tmp_path), "--days", "1", "--seconds", "0.1"]) == 2
     assert "not empty" in capsys.readouterr().err
@@ -63,3 +72,13 @@ def test_simulate_campaign_refuses_a_non_empty_directory(tmp_path: Path, capsys:
     assert main(argv) == 0
     assert (tmp_path / "records" / "day02.tdms").is_file()
     assert 'id = "t1"' in (tmp_path / "campaign.toml").read_text()
+
+
+@pytest.mark.slow
+def test_figure_mci_writes_a_png(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "fig6.png"
+    assert main(["figure-mci", str(out), "--seconds", "2"]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert out.stat().st_size > 50_000
+    assert main(["figure-mci", str(tmp_path / "fig.pdf")]) == 2
+    assert "PNG" in capsys.readouterr().err

@@ -36,7 +36,9 @@ finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinit
     speed=st.floats(min_value=1e-3, max_value=1e5),
     tooth=st.integers(min_value=1, max_value=20),
 )
-def test_round_trip_is_lossless(errors: list[float], depth: float, speed: float, tooth: int) -> None:
+def test_round_trip_is_lossless(
+    errors: list[float], depth: float, speed: float, tooth: int
+) -> None:
     model = GearPairModel(
         dofs="torsional",
         operating=Operating(speed_rpm=speed, load_torque_nm=123.456789012345),
@@ -78,6 +80,6 @@ def test_invalid_toml_text() -> None:
 
 
 def test_missing_keys_take_defaults() -> None:
-    model = model_from_toml('[operating]\nspeed_rpm = 1500\n')
+    model = model_from_toml("[operating]\nspeed_rpm = 1500\n")
     assert model.operating.speed_rpm == 1500.0
     assert model.geometry == GearPairModel().geometry

@@ -37,7 +37,9 @@ def test_spall_signature_is_a_localised_w2_pattern_at_the_tooth_angle() -> None:
     spall = Spall(tooth=16, depth_um=15.0, profile_start_mm=-2.1, profile_extent_mm=3.5,
                   face_start_mm=7.5, face_width_mm=5.0)  # fmt: skip
     healthy = pinion_average(simulate(model, seconds=3.0))
-    spalled = pinion_average(simulate(model.replace(deviations=Deviations(spalls=[spall])), seconds=3.0))
+    spalled = pinion_average(
+        simulate(model.replace(deviations=Deviations(spalls=[spall])), seconds=3.0)
+    )
     diff = spalled - healthy
     angle = np.arange(SAMPLES_PER_REV) * 360.0 / SAMPLES_PER_REV
     pitch16 = (model.tachometer.tooth1_pitch_angle_deg + 15 * 18.0) % 360.0
@@ -68,11 +70,13 @@ def test_default_mci_finds_the_spalled_tooth_and_not_on_healthy_days() -> None:
         channel = analyze_record(record, campaign, input_sha256="").channels[0]
         depths[day.day] = np.array([t.mci_depth for t in channel.teeth])
         worst[day.day] = channel.worst_tooth
-        print(f"day {day.day}: worst tooth {channel.worst_tooth}, depths {np.round(depths[day.day], 2)}")
+        print(
+            f"day {day.day}: worst tooth {channel.worst_tooth}, depths {np.round(depths[day.day], 2)}"
+        )
     # Mid-size spall on the onset day (25 % of the face, 15 µm, 3.5 mm), and larger the next.
     assert worst[4] == 16 and worst[5] == 16
     assert depths[5][15] > depths[4][15] > 0.6
-    for day in (1, 2, 3):
-        assert worst[day] != 16
-        assert depths[day][15] < 0.1
-        assert depths[day].max() < 0.6 * depths[4][15]
+    for healthy in (1, 2, 3):
+        assert worst[healthy] != 16
+        assert depths[healthy][15] < 0.1
+        assert depths[healthy].max() < 0.6 * depths[4][15]

@@ -32,7 +32,9 @@ from physics.simulator import (
 QUIET = [Sensor(noise_rms_m_s2=0.0)]
 
 
-def exact_angle_average(angle_rad: np.ndarray, x: np.ndarray, samples_per_rev: int = 1280) -> np.ndarray:
+def exact_angle_average(
+    angle_rad: np.ndarray, x: np.ndarray, samples_per_rev: int = 1280
+) -> np.ndarray:
     """Reference synchronous average on the simulator's own pinion angle (no tach)."""
     first = math.ceil(angle_rad[0] / (2 * math.pi))
     revs = int(angle_rad[-1] // (2 * math.pi)) - first
@@ -83,7 +85,9 @@ def free_mesh_vibration(dofs: str, **changes: Any) -> tuple[GearPairModel, np.nd
         dofs=dofs,  # type: ignore[arg-type]
         operating=Operating(speed_rpm=0.01),
         mesh=Mesh(damping_ratio=0.0),
-        drive=Drive(input_shaft_stiffness_nm_per_rad=100.0, output_shaft_stiffness_nm_per_rad=100.0),
+        drive=Drive(
+            input_shaft_stiffness_nm_per_rad=100.0, output_shaft_stiffness_nm_per_rad=100.0
+        ),
         sensors=QUIET,
         acquisition=Acquisition(sample_rate_hz=100_000, oversampling=4, warmup_s=0.001),
     )
@@ -104,14 +108,18 @@ def test_full_model_mesh_mode_matches_an_independent_eigen_analysis() -> None:
     # Bearings soft enough to move the mesh mode clearly; same frequency from a hand-built
     # 4-DOF eigenproblem (θ1, θ2, x1, x2; shafts negligible, tilt not excited by a centred load).
     body = WheelBody(bearing_radial_stiffness_n_per_m=3e8, bearing_damping_ratio=0.0)
-    gear = dataclasses.replace(body, mass_kg=5.44, polar_inertia_kg_m2=0.03, tilt_inertia_kg_m2=0.0152)
+    gear = dataclasses.replace(
+        body, mass_kg=5.44, polar_inertia_kg_m2=0.03, tilt_inertia_kg_m2=0.0152
+    )
     model, te, pairs = free_mesh_vibration("full", pinion=body, gear=gear)
     geo = model_geometry(model)
     k = model.mesh.stiffness_per_length_n_per_m2 * geo.face_width_m * pairs
     v = np.array([geo.pinion_base_radius_m, -geo.gear_base_radius_m, 1.0, -1.0])
     stiffness = k * np.outer(v, v) + np.diag([0, 0, 3e8, 3e8])
     mass = np.diag([0.0247, 0.03, 4.93, 5.44])
-    eig = np.sort(np.sqrt(np.abs(np.linalg.eigvals(np.linalg.solve(mass, stiffness))))) / (2 * math.pi)
+    eig = np.sort(np.sqrt(np.abs(np.linalg.eigvals(np.linalg.solve(mass, stiffness))))) / (
+        2 * math.pi
+    )
     measured = zero_crossing_frequency_hz(te, 100_000)
     # TE = rb1θ1 − rb2θ2 rings mostly at the highest (mesh-dominated) mode.
     assert measured == pytest.approx(eig[-1], rel=5e-3)
@@ -121,7 +129,9 @@ def test_full_model_mesh_mode_matches_an_independent_eigen_analysis() -> None:
 
 def test_reduced_model_equals_full_model_with_rigid_bearings() -> None:
     stiff = WheelBody(bearing_radial_stiffness_n_per_m=1e12, bearing_tilt_stiffness_nm_per_rad=1e11)
-    gear = dataclasses.replace(stiff, mass_kg=5.44, polar_inertia_kg_m2=0.03, tilt_inertia_kg_m2=0.0152)
+    gear = dataclasses.replace(
+        stiff, mass_kg=5.44, polar_inertia_kg_m2=0.03, tilt_inertia_kg_m2=0.0152
+    )
     spall = Deviations(spalls=[Spall(tooth=16, face_width_mm=6.0, depth_um=15.0)])
     base = GearPairModel(sensors=QUIET, deviations=spall, pinion=stiff, gear=gear)
     full = simulate(base, seconds=0.6)
@@ -204,7 +214,9 @@ def switching_angle_deviation_rad(model: GearPairModel) -> tuple[np.ndarray, np.
     above = length > 1.5 * b
     i = np.nonzero(above[:-1] & ~above[1:])[0]
     frac = (length[i] - 1.5 * b) / (length[i] - length[i + 1])
-    theta = result.pinion_angle_rad[i] + frac * (result.pinion_angle_rad[i + 1] - result.pinion_angle_rad[i])
+    theta = result.pinion_angle_rad[i] + frac * (
+        result.pinion_angle_rad[i + 1] - result.pinion_angle_rad[i]
+    )
     pitch = 2 * math.pi / model.geometry.pinion_teeth
     grid = theta[0] + pitch * np.round((theta - theta[0]) / pitch)
     deviation = theta - grid
@@ -245,7 +257,9 @@ def test_eccentricity_appears_in_the_transmission_error() -> None:
     result = simulate(model, seconds=2.2)
     theta2 = result.gear_angle_rad
     te = result.transmission_error_m
-    fit = np.linalg.lstsq(np.column_stack([np.cos(theta2), np.sin(theta2), np.ones_like(te)]), te, rcond=None)[0]
+    fit = np.linalg.lstsq(
+        np.column_stack([np.cos(theta2), np.sin(theta2), np.ones_like(te)]), te, rcond=None
+    )[0]
     # δ = TE + e1 − e2 stays ≈ F/k, so TE carries +E2·cos(θ2 + φ2).
     assert fit[0] == pytest.approx(20e-6, rel=0.05)
     assert abs(fit[1]) < 1e-6
@@ -255,7 +269,9 @@ def test_tachometer_edges_follow_the_shaft_and_tooth1_convention() -> None:
     model = GearPairModel(
         sensors=QUIET,
         tachometer=Tachometer(pulses_per_rev=2, tooth1_pitch_angle_deg=100.0),
-        operating=Operating(speed_rpm=1200.0, speed_fluctuation_fraction=0.02, speed_fluctuation_hz=3.0),
+        operating=Operating(
+            speed_rpm=1200.0, speed_fluctuation_fraction=0.02, speed_fluctuation_hz=3.0
+        ),
     )
     result = simulate(model, seconds=0.5)
     edges = result.tach_pulse_times_s
@@ -272,7 +288,9 @@ def test_tachometer_edges_follow_the_shaft_and_tooth1_convention() -> None:
 
 
 def test_speed_drift_follows_the_reference() -> None:
-    model = GearPairModel(sensors=QUIET, operating=Operating(speed_rpm=1000.0, speed_drift_fraction=0.05))
+    model = GearPairModel(
+        sensors=QUIET, operating=Operating(speed_rpm=1000.0, speed_drift_fraction=0.05)
+    )
     result = simulate(model, seconds=1.0)
     edges = result.tach_pulse_times_s
     rpm = 60.0 / np.diff(edges)
@@ -286,7 +304,9 @@ def test_same_seed_same_record_and_noise_level() -> None:
     b = simulate(model, seconds=0.2, seed=3)
     c = simulate(model, seconds=0.2, seed=4)
     np.testing.assert_array_equal(a.channels["acc"], b.channels["acc"])
-    assert np.std(a.channels["acc"] - c.channels["acc"]) == pytest.approx(0.5 * math.sqrt(2), rel=0.05)
+    assert np.std(a.channels["acc"] - c.channels["acc"]) == pytest.approx(
+        0.5 * math.sqrt(2), rel=0.05
+    )
 
 
 def test_contact_set_always_settles() -> None:
