@@ -21,11 +21,17 @@ Method (what :func:`angle_resample` does, in order):
    B-spline (the degree-5 spline through every sample; Unser 1999, "Splines: a perfect fit for
    signal and image processing", IEEE SPM 16(6)): a recursive prefilter (two poles, causal and
    anti-causal passes, mirror boundary) gives the spline coefficients, then each grid point is a
-   6-tap weighted sum (Thévenaz, Blu & Unser 2000 weights), both compiled with numba. It is
-   O(n), several times faster than a global :class:`scipy.interpolate.CubicSpline` of the
-   record, and more accurate at every frequency (a tone at 0.1 × the sampling rate: 2e-6 vs
-   2e-4 RMS error relative to its amplitude; equal to :func:`scipy.ndimage.map_coordinates`
-   with ``order=5, mode="mirror"`` to 1e-13).
+   6-tap weighted sum (Thévenaz, Blu & Unser 2000 weights), both compiled with numba; samples
+   beyond the record's ends are its mirror image. The result equals
+   :func:`scipy.ndimage.map_coordinates` with ``order=5, mode="mirror"`` to 1e-13. It is O(n)
+   and more accurate than a global :class:`scipy.interpolate.CubicSpline` of the record at every
+   frequency (RMS error relative to a tone's amplitude: 2e-6 vs 2e-4 at 0.1 × the sampling rate,
+   3e-4 vs 5e-3 at 0.2 ×, 6e-3 vs 4e-2 at 0.3 ×). Measured on a 60 s, 20 kHz record (1.2 M
+   samples, 1280 samples per revolution): about 17 ms against about 330 ms for CubicSpline
+   (timings on a shared, loaded machine), and an average 18× closer to the exact one (1.5e-6 vs
+   2.7e-5 RMS). Caveat: being closer to ideal, it keeps more of white noise near the Nyquist
+   frequency (RMS gain 0.957 against CubicSpline's 0.934), so on a noise-dominated average the
+   two errors are equal within 2 %.
 
 References: Fyfe & Munck 1997, "Analysis of computed order tracking", MSSP 11(2); McFadden 1987,
 "A revised model for the extraction of periodic waveforms by time domain averaging", MSSP 1(1).
