@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.signal import find_peaks
 
 
 def _checked_teeth(pinion_teeth: int) -> int:
@@ -291,8 +292,19 @@ def per_tooth_well_onset_depth(
     lead = window // 2
     # drop[i] = curve[i - lead - half] - curve[i - lead + half]  (circular)
     drop = np.roll(curves, lead + half, axis=-1) - np.roll(curves, lead - half, axis=-1)
-    masks = tooth_sector_masks(curves.shape[-1], pinion_teeth, tooth1_pitch_angle_deg)
-    depths = np.stack([drop[..., mask].max(axis=-1) for mask in masks], axis=-1)
+    samples = curves.shape[-1]
+    owner = np.argmax(tooth_sector_masks(samples, pinion_teeth, tooth1_pitch_angle_deg), axis=0)
+    flat = drop.reshape(-1, samples)
+    depths = np.zeros((flat.shape[0], int(pinion_teeth)))
+    for row, values in zip(depths, flat, strict=True):
+        # Each falling edge goes to the one tooth that holds its peak (the middle of a plateau),
+        # not to every sector its shoulders reach. Circular: pad by a revolution on each side.
+        padded = np.concatenate((values, values, values))
+        peaks, _ = find_peaks(padded)
+        peaks = peaks[(peaks >= samples) & (peaks < 2 * samples)] - samples
+        row[:] = 0.0
+        np.maximum.at(row, owner[peaks], values[peaks])
+    depths = depths.reshape((*drop.shape[:-1], int(pinion_teeth)))
     return np.asarray(depths, dtype=np.float64)
 
 
@@ -304,7 +316,7 @@ def per_tooth_well_depth(
     window_samples: int,
     axis: int = -1,
 ) -> NDArray[np.float64]:
-    """The per-tooth ``mci_depth`` gearwatch reports: ``min(sector depth, leading-edge drop)``.
+    """The per-tooth ``mci_depth`` gearwatch reports: ``max(0, min(sector depth, leading-edge drop))``.
 
     A tooth scores only when its sector is deep (:func:`per_tooth_mci_depth`) *and* a well
     starts there (:func:`per_tooth_well_onset_depth`, ``h = W/4``): the spalled tooth has
@@ -338,7 +350,9 @@ def per_tooth_well_depth(
     onset = per_tooth_well_onset_depth(
         mci_filtered, pinion_teeth, tooth1_pitch_angle_deg, window_samples=window_samples, axis=axis
     )
-    return np.minimum(sector, onset)
+    # A sector above the revolution's median is a hump, not a well: depth 0, not negative, so
+    # that a healthy tooth's trend sits at 0 whatever the shape of the healthy curve.
+    return np.maximum(np.minimum(sector, onset), 0.0)
 
 
 def per_tooth_difference_stats(
