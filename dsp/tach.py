@@ -247,7 +247,8 @@ def _edge_crossings(
             slope = (m * stx - st * sx) / denom
             if slope > 0.0:
                 intercept = (sx - slope * st) / m
-                out[e] = a + (threshold - intercept) / slope
+                # The crossing lies between the last low and the first high sample.
+                out[e] = a + min(max((threshold - intercept) / slope, 0.0), float(b - a))
                 continue
         # Fast edge (or a flat fit): last upward crossing of the threshold inside [a, b].
         j = b - 1
