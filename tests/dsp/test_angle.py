@@ -128,15 +128,26 @@ def test_anti_aliasing_in_the_angle_domain() -> None:
     assert np.abs(np.fft.rfft(naive))[56] * 2 / 256 > 0.5
 
 
-def test_no_filter_when_angular_rate_exceeds_time_rate() -> None:
-    # 1280 samples/rev at 1000 rpm is 21.3 kHz > 20 kHz: content up to 0.4 fs survives.
-    f_rev = 1000.0 / 60.0
+@pytest.mark.parametrize(("samples_per_rev", "filtered"), [(1280, False), (1024, True)])
+def test_filter_only_when_angular_rate_below_time_rate(
+    samples_per_rev: int, filtered: bool
+) -> None:
+    # 1000 rpm ± 0.5 %: 1280/rev samples at ≥ 21.2 kHz > 20 kHz (no filter, the signal is only
+    # interpolated); 1024/rev at ≤ 17.1 kHz < 20 kHz (low-passed at half the lowest rate first).
+    from scipy import ndimage
+
+    shaft = RunUp(1000.0 / 60.0, 0.05, -0.5)
     t = np.arange(40_000) / FS
-    angle = f_rev * t - 0.5
-    x = np.cos(2 * np.pi * 420 * angle)  # 7 kHz = 0.35 fs, order 420 < 640
-    pulses = (np.arange(int(angle[-1]) + 1) + 0.5) / f_rev
-    spectrum = np.abs(np.fft.rfft(angle_resample(x, FS, pulses, 1, 1280).mean(axis=0))) / 640
-    assert spectrum[420] > 0.9
+    x = np.random.default_rng(3).standard_normal(t.size)  # content at every frequency
+    pulses = shaft.time_at(np.arange(int(shaft.angle(t[-1])) + 1.0))
+    out = angle_resample(x, FS, pulses, 1, samples_per_rev)
+    source = x
+    if filtered:
+        lowest_rate_hz = samples_per_rev / np.max(np.diff(pulses))
+        source = angle_lowpass(x, FS, 0.5 * lowest_rate_hz)
+    times = angle_grid_times(pulses, 1, samples_per_rev)
+    expected = ndimage.map_coordinates(source, [times.ravel() * FS], order=5, mode="mirror")
+    np.testing.assert_allclose(out.ravel(), expected, atol=1e-10)
 
 
 def test_lowpass_response() -> None:
