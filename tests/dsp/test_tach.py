@@ -137,10 +137,15 @@ def test_extra_pulse_removed_and_reported(fraction: float) -> None:
     t = np.sort(np.append(truth, spurious))
     repaired, repairs = repair_pulse_times(t)
     assert len(repairs) == 1 and repairs[0].kind == "extra"
-    # The removed pulse is the spurious one (or, for a bounce at 2 % / 95 %, possibly the real
-    # neighbour: the timing error is then that small fraction of a period).
-    np.testing.assert_allclose(repaired, truth, atol=min(fraction, 1 - fraction) * 0.06 + 1e-12)
-    assert repairs[0].index in (30, 31, 32)
+    if 0.1 < fraction < 0.9:
+        # A spurious pulse inside the period: exactly that pulse is removed.
+        np.testing.assert_array_equal(repaired, truth)
+        assert repairs[0] == PulseRepair("extra", 31, spurious)
+    else:
+        # A bounce next to a real pulse: removing either one leaves a timing error of at most
+        # that small fraction of a period.
+        np.testing.assert_allclose(repaired, truth, atol=min(fraction, 1 - fraction) * 0.06 + 1e-12)
+        assert repairs[0].index in (30, 31, 32)
 
 
 def test_missing_and_extra_together_and_at_edges() -> None:
@@ -245,3 +250,23 @@ def test_shaft_ratios() -> None:
     assert shaft_ratios("gear", 20, 21) == (21 / 20, 1.0)
     with pytest.raises(ValueError, match="tach_shaft"):
         shaft_ratios("crank", 20, 21)  # type: ignore[arg-type]
+
+
+def test_waveform_glitch_and_dropout_end_to_end() -> None:
+    # A TTL with one pulse erased (dropout) and one narrow spurious pulse (glitch) mid-period:
+    # both are detected as edges-or-not, then repaired and reported by the analysis.
+    rec = synthetic_gear_record(duration_s=3.0, noise_rms=0.0, seed=9)
+    w = rec.tach_waveform.copy()
+    fs = rec.sample_rate_hz
+    lost = rec.pulse_times_s[10]
+    w[int(lost * fs) - 5 : int(lost * fs) + 400] = 0.0  # pulse 10 never rises
+    glitch = 0.5 * (rec.pulse_times_s[30] + rec.pulse_times_s[31])
+    w[int(glitch * fs) : int(glitch * fs) + 4] = 5.0
+    tach = analyze_tachometer(pulse_times_from_waveform(w, fs), 1)
+    assert sorted(r.kind for r in tach.repairs) == ["extra", "missing"]
+    extra = next(r for r in tach.repairs if r.kind == "extra")
+    assert extra.time_s == pytest.approx(glitch, abs=1.0 / fs)
+    missing = next(r for r in tach.repairs if r.kind == "missing")
+    assert missing.time_s == pytest.approx(lost, abs=5e-5)  # midpoint; measured 1.5e-5 s off
+    np.testing.assert_allclose(tach.pulse_times_s, rec.pulse_times_s, atol=5e-5)
+    assert tach.whole_revolutions == rec.pulse_times_s.size - 1
