@@ -13,7 +13,7 @@ from sqlalchemy.orm import Session
 
 from gearwatch.errors import Conflict, InputError, NotFound
 from storage.evaluation import evaluate_record
-from storage.models import ApiKey, Record
+from storage.models import ApiKey, Record, ResultVersion, ToothIndicator
 from storage.repositories import (
     AlarmRepository,
     AlarmRuleRepository,
@@ -223,10 +223,29 @@ def test_trend_of_a_year_is_one_fast_indexed_query(db_engine: sa.Engine,
     """365 records × 20 teeth: one query on tooth_indicators, through the trend index. Prints
     the time against a bare DB-API fetch of the same rows (no wall-clock assertion)."""
     campaign = CampaignRepository(db_session).ensure(campaign_config())
+    channel = CampaignRepository(db_session).channel(campaign.id, "acc")
+    # Bulk rows (add_result is tested above; 365 of them would only slow the suite), plus a
+    # superseded result version of every record that the trend must not return.
+    records = [add_record(db_session, campaign, n) for n in range(365)]
+    versions = []
+    for record in records:
+        for current in (False, True):
+            versions.append(ResultVersion(
+                record_id=record.id, parameters={"v": current},
+                parameters_sha256=parameters_sha256({"v": current}), code_version="t",
+                is_current=current, speed_rpm=1500.0, revolutions=40, samples_per_rev=1280))
+    db_session.add_all(versions)
+    db_session.flush()
     rng = np.random.default_rng(3)
-    for n in range(365):
-        accept(db_session, add_record(db_session, campaign, n),
-               mci_depth={t: float(rng.normal(0.1, 0.01)) for t in range(1, 21)})
+    db_session.execute(sa.insert(ToothIndicator), [
+        {"result_id": version.id, "channel_id": channel.id, "record_id": version.record_id,
+         "rig_id": campaign.rig_id, "taken_at": record.taken_at, "tooth": tooth,
+         "indicator": indicator, "value": float(rng.normal(0.1, 0.01)) if version.is_current
+         else 99.0, "is_current": version.is_current}
+        for record, version in zip(np.repeat(records, 2), versions, strict=True)
+        for tooth in range(1, 21)
+        for indicator in ("mci_depth", "diff_energy")
+    ])
     db_session.commit()
     trends = TrendRepository(db_session)
     statements: list[str] = []
