@@ -162,7 +162,7 @@ async function selectRecord(recordId) {
   if (state.curvePlot) state.curvePlot.destroy();
   el("curve").innerHTML = "";
   state.curvePlot = new uPlot(opts, columns, el("curve"));
-  el("curve").dataset.sectors = String(sectors.length);
+  el("curve").dataset.sectors = String(new Set(sectors.map((s) => s.tooth)).size);
 }
 
 /* ---------- one tooth's trend ---------- */
@@ -235,11 +235,11 @@ async function loadRig() {
   } catch (error) { message(error.message); return; }
   const trend = state.trend;
   if (!trend.records.length) return;
-  // Start on the worst open alarm, else on the last record and the highest tooth there.
+  // Start on the open alarm furthest above its baseline, else on the last record and the highest tooth there.
   const open = state.alarms.filter((a) => a.indicator === state.indicator && (a.state === "alarm" || a.state === "warning"));
   const last = trend.records[trend.records.length - 1].record_id;
   let tooth = trend.teeth[0];
-  if (open.length) tooth = open[0].tooth;
+  if (open.length) tooth = open.reduce((a, b) => (b.last_score > a.last_score ? b : a)).tooth;
   else {
     const row = trend.values[trend.values.length - 1];
     let best = -Infinity;
@@ -261,10 +261,10 @@ async function start() {
   select.innerHTML = "";
   for (const rig of rigs) {
     const option = document.createElement("option");
-    option.value = rig.id; option.textContent = rig.id; select.appendChild(option);
+    option.value = rig.rig_id; option.textContent = rig.rig_id; select.appendChild(option);
   }
   if (!rigs.length) { message("no rig yet: replay or upload a campaign"); return; }
-  state.rig = rigs[0].id;
+  state.rig = rigs[0].rig_id;
   await loadRig();
 }
 
