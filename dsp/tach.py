@@ -138,8 +138,8 @@ def shaft_ratios(
 # --------------------------------------------------------------------------- edge detection
 
 
-LEVEL_SAMPLES = 16_384
-"""Samples (at random positions, fixed seed) from which :func:`waveform_levels` estimates the
+LEVEL_SAMPLES = 65_536
+"""Samples (64 blocks at random positions, fixed seed) from which :func:`waveform_levels` estimates the
 levels and the noise of a longer waveform."""
 
 
@@ -149,9 +149,10 @@ def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
     The waveform is split at the midpoint of its 0.1 % and 99.9 % quantiles (so a few spikes
     do not move it); each level is the median of the samples on its side. The noise RMS is
     1.4826 × the median absolute first difference / √2 (edges are rare, so they do not bias it).
-    A waveform longer than 16384 samples is represented by 16384 samples (and first differences)
-    at random positions drawn with a fixed seed: unlike a regular stride this cannot alias with
-    the pulse period, and the estimates' sampling error is far below the noise.
+    A waveform longer than 65536 samples is represented by 64 blocks of 1024 consecutive samples
+    starting at random positions drawn with a fixed seed: unlike a regular stride this cannot
+    alias with the pulse period, and it keeps the cost to about a millisecond. (For a slow,
+    noisy sine the threshold then differs from the full-data one by ~0.3 sample of edge time.)
 
     Parameters
     ----------
@@ -173,9 +174,12 @@ def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
     if x.size == 0:
         raise TachometerError("empty tachometer waveform")
     if x.size > LEVEL_SAMPLES:
-        picks = np.sort(np.random.default_rng(0).integers(0, x.size - 1, LEVEL_SAMPLES))
-        values = x[picks]
-        steps = x[picks + 1] - values
+        # 64 contiguous blocks at random starts: cache-friendly, and random phases cannot alias.
+        block = LEVEL_SAMPLES // 64
+        starts = np.random.default_rng(0).integers(0, x.size - block, 64)
+        blocks = x[starts[:, np.newaxis] + np.arange(block)]
+        values = blocks.ravel()
+        steps = np.diff(blocks, axis=1).ravel()
     else:
         values = x
         steps = np.diff(x)
