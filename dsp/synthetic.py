@@ -19,7 +19,7 @@ first tachometer pulse):
   response of one damped structural mode ``h(τ) = exp(-ζωτ) sin(ω_d τ)``. Since
   ``W'' * h = h'(θ - θ_a) - h'(θ - θ_b)``, the spall adds a decaying ring of the mode, started
   with opposite signs at the two window edges. ``spall_depth`` is the amplitude of each ring at
-  its start. The mode is expressed in angle at the *nominal* speed (``ω`` in rad per revolution
+  its start, before the band limit below rounds the start off. The mode is expressed in angle at the *nominal* speed (``ω`` in rad per revolution
   = ``2π f_mode / f_rev``), which keeps the spall exactly pinion-periodic;
 - **band limit**: every pinion- and gear-periodic component is multiplied, order by order, by a
   raised-cosine taper equal to 1 up to ``bandwidth_hz / 2`` and 0 from ``bandwidth_hz`` (in Hz at

@@ -139,8 +139,8 @@ def shaft_ratios(
 
 
 LEVEL_SAMPLES = 65_536
-"""Samples (64 blocks at random positions, fixed seed) from which :func:`waveform_levels` estimates the
-levels and the noise of a longer waveform."""
+"""Samples (64 blocks at random positions, fixed seed) from which :func:`waveform_levels`
+estimates the levels and the noise of a longer waveform."""
 
 
 def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
