@@ -88,8 +88,11 @@ def revoke_key(args: argparse.Namespace) -> int:
     engine, factory = open_database(_database_url(args))
     try:
         with session_scope(factory) as session:
-            if not ApiKeyRepository(session).revoke(args.prefix):
+            keys = ApiKeyRepository(session)
+            match = [k for k in keys.list() if k.prefix == args.prefix]
+            if not match:
                 raise NotFound(f"no active key with prefix {args.prefix!r}")
+            keys.revoke(match[0].id)
             AuditRepository(session).add(
                 who="cli", action="key.revoke", target=f"key:{args.prefix}"
             )
