@@ -76,9 +76,10 @@ def _free_port() -> int:
 def test_serve_runs_the_api_on_the_given_port_and_database(tmp_path: Path) -> None:
     port = _free_port()
     database = tmp_path / "served.db"
+    command = [sys.executable, "-m", "gearwatch", "serve", "--port", str(port)]
+    command += ["--db", f"sqlite:///{database}", "--log-level", "warning"]
     process = subprocess.Popen(
-        [sys.executable, "-m", "gearwatch", "serve", "--port", str(port)]
-        + ["--db", f"sqlite:///{database}", "--log-level", "warning"],
+        command,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
