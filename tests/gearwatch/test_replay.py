@@ -172,3 +172,34 @@ def test_replay_command_errors_are_one_line(tmp_path, capsys: pytest.CaptureFixt
     assert main(["replay", str(tmp_path / "c"), "--db", "sqlite://", "--params", str(bad)]) == 2
     assert "unknown analysis parameter" in capsys.readouterr().err
     assert main(["watch", str(tmp_path / "c"), "--interval", "0", "--db", "sqlite://"]) == 2
+
+
+@pytest.mark.slow
+def test_replay_of_the_real_wind_turbine_campaign(db_url: str, db_engine: sa.Engine, tmp_path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """10 real records (MAT, pulse-time tachometer, no tooth counts): all accepted, whole-record
+    metrics trended, no per-tooth rows; replaying again changes nothing."""
+    from storage.models import ToothIndicator
+    from storage.repositories import RigRepository, TrendRepository
+    from tests.conftest import IN_CI
+
+    repo = Path(__file__).resolve().parents[2]
+    example = repo / "examples" / "windturbine-hss"
+    shared = repo.parent / "shared" / "data" / "real" / "windturbine-hss"
+    if not shared.is_dir():
+        if IN_CI:
+            pytest.fail(f"{shared} is missing: CI must clone the repository with shared/ beside it")
+        pytest.skip(f"{shared} not present")
+    args = ["replay", str(example), "--db", db_url, "--raw-store", str(tmp_path / "raw"),
+            "--no-progress"]
+    assert main(args) == 0
+    assert "10 record(s): 10 accepted" in capsys.readouterr().out
+    with session_scope(session_factory(db_engine)) as session:
+        rig = RigRepository(session).get_by_name("windturbine-hss")
+        assert rig is not None and rig.pinion_teeth is None
+        kurtosis = TrendRepository(session).metric_trend(rig.id, "kurtosis")
+        assert len(kurtosis) == 10 and kurtosis[0].taken_at.isoformat().startswith("2013-03-11")
+        assert all(1.0 < p.value < 10.0 for p in kurtosis)
+        assert session.scalar(sa.select(sa.func.count()).select_from(ToothIndicator)) == 0
+    assert main(args) == 0
+    assert "10 record(s): 10 unchanged" in capsys.readouterr().out
