@@ -251,16 +251,21 @@ class ReprocessIn(BaseModel):
 
 
 class JobOut(BaseModel):
-    """What a per-record job did."""
+    """What a per-record job did (or, with workers, that it was queued)."""
 
-    record: RecordOut
-    outcome: Literal["accepted", "rejected", "unchanged", "reprocessed"] = Field(
+    record: RecordOut | None = Field(
+        default=None, description="The stored record (absent while the job is queued)."
+    )
+    outcome: Literal["accepted", "rejected", "unchanged", "reprocessed", "queued"] = Field(
         description="accepted: analysed and stored; rejected: kept but failed the checks "
         "(see record.reason); unchanged: this file (and these parameters) were already "
-        "processed; reprocessed: a new result version was added.",
+        "processed; reprocessed: a new result version was added; queued: the raw file is kept "
+        "and a worker will process it (GEARWATCH_JOB_RUNNER=broker).",
     )
     result_id: int | None = None
     alarm_changes: int = Field(default=0, description="Alarm state changes this record caused.")
+    sha256: str | None = Field(default=None, description="sha256 of the uploaded file.")
+    message_id: str | None = Field(default=None, description="Broker message id when queued.")
 
 
 class ToothSector(BaseModel):

@@ -22,7 +22,7 @@ from service.convert import (
     result_out,
     rig_by_name,
 )
-from service.deps import CurrentKey, DbSession, OperatorKey, SettingsDep
+from service.deps import Caller, CurrentKey, DbSession, OperatorKey, SettingsDep
 from service.routers.common import CampaignName, Limit, Offset, RecordId, RigFilter, errors
 from service.settings import Settings
 
@@ -47,6 +47,7 @@ def _job_out(db: Session, job: object) -> schemas.JobOut:
         outcome=job.outcome,
         result_id=job.result_id,
         alarm_changes=len(job.alarm_changes),
+        sha256=job.sha256,
     )
 
 
@@ -102,9 +103,12 @@ def list_records(
     ".csv, .csv.gz, .npz, .h5, .tdms, .mat, …) and `entry`, the record's manifest entry as "
     'JSON (`{"taken_at": "2026-03-02T08:00:00Z", "label": "day 2"}`). The raw file is kept '
     "first, then analysed; a file that fails the quality checks is stored as `rejected` "
-    "with its reason (still 201). The same file again changes nothing (200, `unchanged`).",
+    "with its reason (still 201). The same file again changes nothing (200, `unchanged`). "
+    "With `GEARWATCH_JOB_RUNNER=broker` the raw file is kept and its job queued for the "
+    "Dramatiq workers (202, `queued`).",
     responses={
         200: {"model": schemas.JobOut, "description": "Already ingested"},
+        202: {"model": schemas.JobOut, "description": "Queued for the workers"},
         **errors(401, 403, 404, 413, 422),
     },
 )
@@ -139,6 +143,9 @@ def upload_record(
     with tempfile.TemporaryDirectory(dir=settings.upload_dir) as folder:
         spooled = Path(folder) / (_UNSAFE.sub("_", Path(file_name).name) or "record")
         _spool(file, spooled, settings)
+        if settings.job_runner == "broker":
+            response.status_code = 202
+            return _enqueue(db, stored.name, spooled, record_entry, file_name, settings, caller)
         job = process_file(
             db,
             spooled,
@@ -158,6 +165,43 @@ def upload_record(
     if job.outcome in ("unchanged", "reprocessed"):
         response.status_code = 200
     return _job_out(db, job)
+
+
+def _enqueue(
+    db: Session,
+    campaign: str,
+    spooled: Path,
+    entry: schemas.RecordEntryIn,
+    file_name: str,
+    settings: Settings,
+    caller: Caller,
+) -> schemas.JobOut:
+    """Keep the raw file (the store is shared with the workers), then queue its job."""
+    from gearwatch.jobs import record_suffix
+    from gearwatch.worker import enqueue_record
+    from ingest.sources import file_sha256
+    from storage.raw_store import RawStore
+    from storage.repositories import AuditRepository
+
+    sha256 = file_sha256(spooled)
+    kept = RawStore(settings.raw_store).keep(spooled, sha256, record_suffix(spooled))
+    message_id = enqueue_record(
+        campaign,
+        str(kept),
+        taken_at=entry.taken_at.isoformat(),
+        label=entry.label,
+        file_name=file_name,
+        database_url=settings.database_url,
+        raw_store=str(settings.raw_store),
+    )
+    AuditRepository(db).add(
+        who=caller.who,
+        action="record.upload",
+        target=f"sha256:{sha256}",
+        details={"campaign": campaign, "file": file_name, "outcome": "queued"},
+    )
+    db.commit()
+    return schemas.JobOut(outcome="queued", sha256=sha256, message_id=message_id)
 
 
 def _spool(upload: UploadFile, target: Path, settings: Settings) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -437,3 +438,47 @@ def test_openapi_is_complete(api: Api) -> None:
                 assert "401" in operation["responses"], (method, path)
     text = str(spec)
     assert "'examples'" in text or "'example'" in text
+
+
+def test_upload_with_workers_keeps_the_file_and_queues_the_job(
+    api: Api, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """GEARWATCH_JOB_RUNNER=broker: 202, the raw file kept in the shared store, one message
+    whose arguments, run by the worker's job function, ingest the record."""
+    from fastapi.testclient import TestClient
+
+    import gearwatch.worker
+    from service.app import create_app
+
+    sent: list[tuple[str, str, dict[str, Any]]] = []
+
+    def fake_enqueue(campaign: str, path: str, **options: Any) -> str:
+        sent.append((campaign, path, options))
+        return "message-1"
+
+    monkeypatch.setattr(gearwatch.worker, "enqueue_record", fake_enqueue)
+    operator = api.headers("operator")
+    assert api.client.post("/api/v1/campaigns", json=MANIFEST, headers=operator).status_code == 201
+    settings = api.app.state.settings.model_copy(update={"job_runner": "broker"})
+    with TestClient(create_app(settings)) as client:
+        response = client.post(
+            "/api/v1/campaigns/upload-test/records",
+            files={"file": ("day07.wav", b"queued bytes")},
+            data={"entry": '{"taken_at": "2026-03-07T08:00:00Z", "label": "day 7"}'},
+            headers=operator,
+        )
+    assert response.status_code == 202, response.text
+    body = response.json()
+    assert body["outcome"] == "queued" and body["message_id"] == "message-1"
+    assert body["record"] is None
+    [(campaign, path, options)] = sent
+    assert campaign == "upload-test" and Path(path).read_bytes() == b"queued bytes"
+    assert Path(path).name.startswith(body["sha256"]) and Path(path).is_relative_to(api.raw_store)
+    assert options["taken_at"] == "2026-03-07T08:00:00+00:00" and options["label"] == "day 7"
+
+    done = gearwatch.worker.run_job(campaign, path, **options)
+    assert done["status"] == "rejected"  # not a real WAV, but stored with its reason
+    records = api.get("/api/v1/records?campaign_id=upload-test").json()["items"]
+    assert [(r["sha256"], r["file_name"], r["label"]) for r in records] == [
+        (body["sha256"], "day07.wav", "day 7")
+    ]

@@ -3,6 +3,7 @@ checked for what `docker compose config` would need and what the deployment prom
 
 from __future__ import annotations
 
+import importlib.util
 import re
 from pathlib import Path
 
@@ -40,6 +41,10 @@ def test_compose_services_volumes_and_replicas() -> None:
     assert "0.0.0.0" in services["api"]["command"]
     for name in ("postgres", "rabbitmq"):
         assert services[name]["healthcheck"]["test"]
+    worker = services["worker"]["command"]
+    assert worker[:2] == ["dramatiq", "gearwatch.worker"]
+    assert importlib.util.find_spec(worker[1]) is not None  # the actor module exists
+    assert services["worker"]["environment"]["GEARWATCH_JOB_RUNNER"] == "broker"
 
 
 def test_compose_references_are_defined() -> None:
