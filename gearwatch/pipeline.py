@@ -204,10 +204,12 @@ def _checked_signal(record: RecordData, name: str) -> np.ndarray:
     signal = np.asarray(record.channel(name), dtype=np.float64)
     if signal.ndim != 1 or signal.size == 0:
         raise RecordFormatError(f"channel {name!r} must be a non-empty 1-D signal")
-    if not np.all(np.isfinite(signal)):
+    # max/min propagate NaN and show inf: one pass each instead of a full isfinite() scan
+    top, bottom = float(signal.max()), float(signal.min())
+    if not (np.isfinite(top) and np.isfinite(bottom)):
         bad = int(np.count_nonzero(~np.isfinite(signal)))
         raise RecordRejected(f"channel {name!r} contains {bad} NaN or inf samples")
-    clipped = clipped_fraction(signal)
+    clipped = clipped_fraction(signal, extremes=(bottom, top))
     if clipped > MAX_CLIPPED_FRACTION:
         raise RecordRejected(
             f"channel {name!r} is clipped: {clipped:.2%} of samples sit at the sensor's extreme value"
@@ -215,23 +217,36 @@ def _checked_signal(record: RecordData, name: str) -> np.ndarray:
     return signal
 
 
-def clipped_fraction(signal: np.ndarray, min_run: int = CLIPPING_MIN_RUN) -> float:
+def clipped_fraction(
+    signal: np.ndarray,
+    min_run: int = CLIPPING_MIN_RUN,
+    extremes: tuple[float, float] | None = None,
+) -> float:
     """Fraction of samples in runs of ≥ ``min_run`` consecutive samples equal to the signal's max or min.
 
     A clipped sensor or a saturated ADC holds its extreme value; a healthy analogue signal
-    touches its extreme once.
+    touches its extreme once. ``extremes`` = (min, max) when the caller already has them.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> clipped_fraction(np.array([0.0, 1.0, 1.0, 1.0, 0.5, -1.0, 0.0, 0.2]))
+    0.375
     """
     if signal.size < min_run:
         return 0.0
-    top, bottom = signal.max(), signal.min()
+    bottom, top = extremes if extremes is not None else (signal.min(), signal.max())
     if top == bottom:
         return 1.0  # a constant (dead or pegged) channel
-    at_extreme = (signal == top) | (signal == bottom)
-    # Length of the run each sample belongs to, via run boundaries.
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], at_extreme.view(np.int8), [0]))))
-    starts, stops = edges[::2], edges[1::2]
-    lengths = stops - starts
-    return float(lengths[lengths >= min_run].sum() / signal.size)
+    clipped = 0
+    for value in (top, bottom):
+        at = np.flatnonzero(signal == value)  # few samples unless the channel is clipped
+        if at.size < min_run:
+            continue
+        breaks = np.flatnonzero(np.diff(at) != 1)
+        lengths = np.diff(np.concatenate(([-1], breaks, [at.size - 1])))
+        clipped += int(lengths[lengths >= min_run].sum())
+    return clipped / signal.size
 
 
 def gear_revolutions_from_pinion_grid(pinion_revs: np.ndarray, gear_samples_per_rev: int) -> np.ndarray:
@@ -271,9 +286,12 @@ def _analyze_channel(
     else:
         pinion_spr = gear_spr = params.samples_per_rev_without_teeth
 
-    pinion_revs = angle_resample(
-        signal, sample_rate_hz, pulse_times_s, ppr, pinion_spr, shaft_ratio=pinion_per_tach_rev
-    )
+    try:
+        pinion_revs = angle_resample(
+            signal, sample_rate_hz, pulse_times_s, ppr, pinion_spr, shaft_ratio=pinion_per_tach_rev
+        )
+    except ValueError as error:  # e.g. pulse times outside the record: tach and signal disagree
+        raise RecordRejected(f"channel {name!r}: cannot resample to shaft angle: {error}") from error
     revolutions = int(pinion_revs.shape[-2])
     if revolutions < params.min_revolutions:
         raise RecordRejected(
