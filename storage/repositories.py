@@ -479,6 +479,16 @@ class RecordRepository:
             for channel_name, curve_name, data in self.session.execute(query)
         ]
 
+    def curve_index(self, result_id: int) -> builtins.list[tuple[str, str, int]]:
+        """(channel, curve name, length) of every curve of a result version, without the data."""
+        query = (
+            sa.select(Channel.name, Curve.name, Curve.length)
+            .join(Channel, Channel.id == Curve.channel_id)
+            .where(Curve.result_id == result_id)
+            .order_by(Curve.id)
+        )
+        return [(channel, name, int(length)) for channel, name, length in self.session.execute(query)]
+
     def tooth_indicators(self, result_id: int) -> builtins.list[ToothIndicator]:
         query = (
             sa.select(ToothIndicator)
@@ -707,8 +717,10 @@ class AlarmRuleRepository:
         return rule
 
     def update(self, rule_id: int, **changes: Any) -> AlarmRule:
-        """Change a rule. A new ``baseline_records`` restarts its baselines (tracks are reset);
-        other changes apply from the next record on."""
+        """Change a rule. Levels and persistence apply from the next record on. A change of
+        ``baseline_records`` or of a spread floor restarts the rule's baselines, and disabling
+        the rule stops it: in both cases its tracks are reset and its open alarms are closed
+        (state ``cleared``, with the reason in their history)."""
         rule = self.get(rule_id)
         unknown = set(changes) - set(RULE_FIELDS)
         if unknown:
@@ -716,8 +728,16 @@ class AlarmRuleRepository:
         values = {name: getattr(rule, name) for name in RULE_FIELDS}
         values.update(changes)
         self._validate(rule.indicator, values)
-        if "baseline_records" in changes and changes["baseline_records"] != rule.baseline_records:
+        restart = any(
+            name in changes and changes[name] != getattr(rule, name)
+            for name in ("baseline_records", "spread_floor_fraction", "spread_floor_abs")
+        )
+        disabled = rule.enabled and changes.get("enabled") is False
+        if restart or disabled:
             self.session.execute(sa.delete(AlarmTrack).where(AlarmTrack.rule_id == rule.id))
+            self._close_open_alarms(
+                rule, "rule disabled" if disabled else "baseline restarted by a rule change"
+            )
         for name, value in changes.items():
             setattr(rule, name, value)
         rule.updated_at = utcnow()
@@ -725,8 +745,21 @@ class AlarmRuleRepository:
         return rule
 
     def delete(self, rule_id: int) -> None:
-        self.session.delete(self.get(rule_id))
+        """Delete a rule; its open alarms are closed (``cleared``, reason in the history) and
+        every alarm of it is kept."""
+        rule = self.get(rule_id)
+        self._close_open_alarms(rule, "rule deleted")
+        self.session.delete(rule)
         self.session.flush()
+
+    def _close_open_alarms(self, rule: AlarmRule, reason: str) -> None:
+        alarms = AlarmRepository(self.session)
+        now = utcnow()
+        for alarm in self.session.scalars(
+            sa.select(Alarm).where(Alarm.rule_id == rule.id, Alarm.state != "cleared")
+        ):
+            alarm.cleared_at = now
+            alarms.add_event(alarm, "cleared", at=now, who="system", comment=reason)
 
     def ensure_defaults(self, rig_id: int) -> builtins.list[AlarmRule]:
         """Create the :data:`DEFAULT_RULES` the rig does not have yet; returns all its rules."""

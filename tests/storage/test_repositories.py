@@ -149,6 +149,10 @@ def test_curves_are_float32_bytes_not_json(db_engine: sa.Engine, db_session: Ses
     ]
     angle = np.linspace(0.0, 2 * np.pi, 1280, endpoint=False)
     np.testing.assert_array_equal(curves[1].values, (np.cos(angle) / 3).astype(np.float32))
+    assert RecordRepository(db_session).curve_index(result.id) == [
+        ("a", "pinion_average", 1280), ("a", "mci", 1280),
+        ("b", "pinion_average", 1280), ("b", "mci", 1280),
+    ]
     only = RecordRepository(db_session).curves(result.id, channel="b", names=["mci"])
     assert [(c.channel, c.name) for c in only] == [("b", "mci")]
     with db_engine.connect() as connection:
@@ -487,3 +491,45 @@ def test_out_of_order_record_is_left_out_of_the_evaluation(db_session: Session,
     assert "not newer than" in caplog.text
     assert AlarmRepository(db_session).count() == 0
     assert ingest_day(db_session, campaign, 6, 9.0) != []  # in order again: evaluated
+
+
+@pytest.mark.parametrize(
+    ("change", "reason"),
+    [
+        ({"baseline_records": 3}, "baseline restarted by a rule change"),
+        ({"spread_floor_abs": 0.5}, "baseline restarted by a rule change"),
+        ({"enabled": False}, "rule disabled"),
+        (None, "rule deleted"),
+    ],
+)
+def test_rule_changes_that_restart_or_stop_a_rule_close_its_open_alarms(
+    db_session: Session, change: dict | None, reason: str
+) -> None:
+    campaign = CampaignRepository(db_session).ensure(campaign_config())
+    rules = AlarmRuleRepository(db_session)
+    rule = rules.create(campaign.rig_id, "mci_depth", baseline_records=2, persistence=1)
+    for day, depth in enumerate([0.1, 0.1, 0.5]):
+        ingest_day(db_session, campaign, day, depth)
+    alarms = AlarmRepository(db_session)
+    (alarm,) = alarms.list(open_only=True)
+    if change is None:
+        rules.delete(rule.id)
+    else:
+        rules.update(rule.id, **change)
+        assert rules.tracks(rule.id) == []
+    db_session.commit()
+    assert alarms.count(open_only=True) == 0
+    assert alarms.get(alarm.id).cleared_at is not None
+    last = alarms.history(alarm.id)[-1]
+    assert (last.state, last.who, last.comment) == ("cleared", "system", reason)
+
+
+def test_level_changes_keep_tracks_and_alarms(db_session: Session) -> None:
+    campaign = CampaignRepository(db_session).ensure(campaign_config())
+    rules = AlarmRuleRepository(db_session)
+    rule = rules.create(campaign.rig_id, "mci_depth", baseline_records=2, persistence=1)
+    for day, depth in enumerate([0.1, 0.1, 0.5]):
+        ingest_day(db_session, campaign, day, depth)
+    rules.update(rule.id, warning_level=5.0, alarm_level=50.0, persistence=2)
+    assert len(rules.tracks(rule.id)) == 20
+    assert AlarmRepository(db_session).count(open_only=True) == 1
