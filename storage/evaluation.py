@@ -155,3 +155,26 @@ def evaluate_record(session: Session, record: Record, result: ResultVersion) -> 
             )
     session.flush()
     return changes
+
+
+def reevaluate_rig(session: Session, rig_id: int) -> list[AlarmChange]:
+    """Recompute the alarms of a rig's enabled rules from the stored results.
+
+    The rules' tracks and alarms (with their history) are deleted, then the current result
+    version of every accepted record is evaluated in ``taken_at`` order. Use it after
+    re-processing records with new parameters, or after a rule change that should apply to the
+    past. Acknowledgements of the deleted alarms are lost: the caller should write the audit
+    log entry.
+    """
+    rules_repo = AlarmRuleRepository(session)
+    alarms_repo = AlarmRepository(session)
+    records_repo = RecordRepository(session)
+    for rule in rules_repo.list(rig_id, enabled_only=True):
+        rules_repo.reset_tracks(rule.id)
+        alarms_repo.delete_for_rule(rule.id)
+    changes: list[AlarmChange] = []
+    for record in records_repo.list(rig_id=rig_id, status="accepted", limit=None):
+        result = records_repo.current_result(record.id)
+        if result is not None:
+            changes.extend(evaluate_record(session, record, result))
+    return changes

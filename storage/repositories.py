@@ -769,6 +769,10 @@ class AlarmRuleRepository:
         return self.list(rig_id)
 
     # -- evaluation state (used by storage.evaluation) ------------------------------------
+    def reset_tracks(self, rule_id: int) -> None:
+        self.session.execute(sa.delete(AlarmTrack).where(AlarmTrack.rule_id == rule_id))
+        self.session.flush()
+
     def track(self, rule_id: int, channel_id: int, tooth: int) -> AlarmTrack | None:
         return self.session.scalar(
             sa.select(AlarmTrack).where(
@@ -852,6 +856,15 @@ class AlarmRepository:
                 Alarm.state != "cleared",
             )
         )
+
+    def delete_for_rule(self, rule_id: int) -> int:
+        """Delete every alarm (and its history) of a rule; returns how many."""
+        ids = list(self.session.scalars(sa.select(Alarm.id).where(Alarm.rule_id == rule_id)))
+        if ids:
+            self.session.execute(sa.delete(AlarmEvent).where(AlarmEvent.alarm_id.in_(ids)))
+            self.session.execute(sa.delete(Alarm).where(Alarm.id.in_(ids)))
+            self.session.expire_all()
+        return len(ids)
 
     def history(self, alarm_id: int) -> builtins.list[AlarmEvent]:
         self.get(alarm_id)

@@ -63,6 +63,12 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("campaign", metavar="CAMPAIGN_DIR",
                         help="campaign folder with campaign.toml (or the manifest itself)")
+    parser.add_argument(
+        "--reevaluate-alarms",
+        action="store_true",
+        help="afterwards, recompute the rig's alarms from the current results (after "
+        "re-processing with new parameters; acknowledgements of the old alarms are lost)",
+    )
     add_common_arguments(parser)
     parser.set_defaults(func=run)
 
@@ -133,6 +139,8 @@ class ReplaySummary:
     alarm_changes: int = 0
     internal_errors: int = 0
     open_alarms: list[str] = dataclasses.field(default_factory=list)
+    reevaluated: bool = False
+    """The rig's alarms were recomputed from the current results after the ingestion."""
 
     def lines(self) -> list[str]:
         counts = ", ".join(f"{n} {outcome}" for outcome, n in sorted(self.outcomes.items()))
@@ -141,7 +149,8 @@ class ReplaySummary:
         for file_name, reason in self.rejected:
             out.append(f"  rejected {file_name}: {reason}")
         out.append(
-            f"alarms: {self.alarms_raised} raised, {self.alarm_changes} state change(s); "
+            f"alarms{' (re-evaluated from the current results)' if self.reevaluated else ''}: "
+            f"{self.alarms_raised} raised, {self.alarm_changes} state change(s); "
             f"{len(self.open_alarms)} open"
         )
         out.extend(f"  {line}" for line in self.open_alarms)
@@ -157,9 +166,11 @@ def replay_campaign(
     analyzer: Callable[..., Any] | None = None,
     progress: bool = True,
     only: Sequence[str] | None = None,
+    reevaluate_alarms: bool = False,
 ) -> ReplaySummary:
     """Ingest every record of the manifest (those named in ``only``, when given), oldest first,
-    one transaction per record."""
+    one transaction per record; with ``reevaluate_alarms``, then recompute the rig's alarms from
+    the current results (:func:`storage.evaluation.reevaluate_rig`, one transaction)."""
     from tqdm import tqdm
 
     from gearwatch.jobs import parse_taken_at, process_file
@@ -197,6 +208,21 @@ def replay_campaign(
             alarms=summary.alarms_raised,
         )
     bar.close()
+    if reevaluate_alarms:
+        from storage.evaluation import reevaluate_rig
+        from storage.repositories import AuditRepository, RigRepository
+
+        with session_scope(session_factory) as session:
+            rig = RigRepository(session).get_by_name(campaign.rig.id)
+            if rig is not None:
+                changes = tuple(reevaluate_rig(session, rig.id))
+                summary.reevaluated = True
+                summary.alarms_raised = sum(1 for c in changes if c.opened)
+                summary.alarm_changes = len(changes)
+                AuditRepository(session).add(
+                    "gearwatch replay", "alarms.reevaluate", f"rig:{rig.name}",
+                    {"alarm_changes": len(changes)},
+                )
     summary.open_alarms = open_alarm_lines(session_factory, campaign.rig.id)
     return summary
 
@@ -230,7 +256,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         summary = replay_campaign(
             manifest, factory, RawStore(raw_store_root(args)), params,
-            progress=not args.no_progress,
+            progress=not args.no_progress, reevaluate_alarms=args.reevaluate_alarms,
         )
     finally:
         engine.dispose()

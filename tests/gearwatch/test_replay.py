@@ -203,3 +203,27 @@ def test_replay_of_the_real_wind_turbine_campaign(db_url: str, db_engine: sa.Eng
         assert session.scalar(sa.select(sa.func.count()).select_from(ToothIndicator)) == 0
     assert main(args) == 0
     assert "10 record(s): 10 unchanged" in capsys.readouterr().out
+
+
+def test_replay_with_new_parameters_can_reevaluate_the_alarms(db_engine: sa.Engine,
+                                                              tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0] * 8 + [3.0, 3.0])
+    manifest = tmp_path / "camp" / "campaign.toml"
+    factory = session_factory(db_engine)
+    store = RawStore(tmp_path / "store")
+    replay_campaign(manifest, factory, store, analyzer=FakeAnalyzer(), progress=False)
+
+    class Halved(FakeAnalyzer):  # "new parameters" that shrink the excursion below warning
+        def __call__(self, record, campaign, params, sha, baselines):  # type: ignore[no-untyped-def]
+            record.channels["acc"] = record.channels["acc"] / (
+                1.0 if float(abs(record.channels["acc"]).max()) < 2.0 else 3.0)
+            return super().__call__(record, campaign, params, sha, baselines)
+
+    summary = replay_campaign(manifest, factory, store, AnalysisParameters(samples_per_mesh=32),
+                              analyzer=Halved(), progress=False, reevaluate_alarms=True)
+    assert summary.outcomes == {"reprocessed": 10} and summary.reevaluated
+    assert summary.alarms_raised == 0 and summary.open_alarms == []
+    assert "re-evaluated" in summary.lines()[-1]
+    with session_scope(factory) as session:
+        assert AlarmRepository(session).count() == 0
+    assert campaign.id == summary.campaign

@@ -533,3 +533,35 @@ def test_level_changes_keep_tracks_and_alarms(db_session: Session) -> None:
     rules.update(rule.id, warning_level=5.0, alarm_level=50.0, persistence=2)
     assert len(rules.tracks(rule.id)) == 20
     assert AlarmRepository(db_session).count(open_only=True) == 1
+
+
+def test_reevaluation_follows_reprocessed_results(db_session: Session) -> None:
+    from storage.evaluation import reevaluate_rig
+
+    campaign = CampaignRepository(db_session).ensure(campaign_config())
+    AlarmRuleRepository(db_session).create(campaign.rig_id, "mci_depth", baseline_records=3,
+                                           persistence=2)
+    depths = [0.1, 0.1, 0.1, 0.5, 0.5]
+    for day, depth in enumerate(depths):
+        ingest_day(db_session, campaign, day, depth)
+    alarms = AlarmRepository(db_session)
+    assert [(a.tooth, a.raised_at) for a in alarms.list()] == [(7, T0 + dt.timedelta(days=4))]
+    # Re-processing with other parameters moves the excursion to days 2-3 of tooth 9.
+    records = RecordRepository(db_session)
+    for record in records.list(limit=None):
+        day = (record.taken_at - T0).days
+        accept(db_session, record, parameters={"v": 2},
+               mci_depth={9: 0.5 if day in (3, 4) else 0.1})
+    changes = reevaluate_rig(db_session, campaign.rig_id)
+    db_session.commit()
+    assert [(c.tooth, c.state, c.opened) for c in changes] == [(9, "alarm", True)]
+    assert [(a.tooth, a.raised_at) for a in alarms.list()] == [(9, T0 + dt.timedelta(days=4))]
+    assert again_is_stable(db_session, campaign.rig_id)
+
+
+def again_is_stable(session: Session, rig_id: int) -> bool:
+    from storage.evaluation import reevaluate_rig
+
+    first = [(a.tooth, a.state, a.raised_at) for a in AlarmRepository(session).list()]
+    reevaluate_rig(session, rig_id)
+    return [(a.tooth, a.state, a.raised_at) for a in AlarmRepository(session).list()] == first
