@@ -1,0 +1,402 @@
+"""Mechanism plug-ins: each one changes the simulator's configuration, so its response is physics.
+
+A plug-in knows its parameters (physical, with units in the names), the internal vector the
+non-linear fit moves, the finite-difference steps, how to put itself into a
+:class:`~physics.config.GearPairModel`, and which candidates a scan tries (tooth, wheel,
+order, mode frequency). The scan uses the linearised response at a reference amplitude;
+the refit after acceptance runs the simulator with the real parameters.
+
+Signatures (see ``docs/reconciliation.md`` and ``shared/docs/physics-signatures.md``):
+
+* ``pinion_eccentricity`` / ``gear_eccentricity``: ±1 × that shaft's order around every mesh
+  harmonic, mostly FM (kinematic), geometric (load-independent).
+* ``index_error``: one tooth displaced along the line of action: all orders of that shaft.
+* ``tooth_spall``: a cavity on one tooth, depth-limited (geometry type): broadband shaft
+  sidebands, entry/exit events.
+* ``tooth_crack``: one tooth's mesh stiffness reduced over its whole mesh (stiffness type,
+  scales with load).
+* ``profile_modification``: tip relief on every tooth: mesh harmonics only.
+* ``structural_mode``: a transfer-path resonance the configuration lacks: a bump fixed in Hz.
+* ``load_fluctuation``: output torque modulated at an output-shaft order: AM sidebands.
+
+Examples
+--------
+>>> from physics.config import GearPairModel
+>>> plugin = CATALOGUE["pinion_eccentricity"]
+>>> m = plugin.apply(GearPairModel(), Candidate("pinion_eccentricity", "pinion"),
+...                  {"amplitude_um": 5.0, "phase_deg": 30.0})
+>>> m.deviations.pinion_eccentricity_um, round(m.deviations.pinion_eccentricity_phase_deg, 6)
+(5.0, 30.0)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from physics.config import Crack, GearPairModel, Spall, Wheel
+
+MECHANISM_NAMES = (
+    "pinion_eccentricity",
+    "gear_eccentricity",
+    "index_error",
+    "tooth_spall",
+    "tooth_crack",
+    "profile_modification",
+    "structural_mode",
+    "sliding_friction",
+    "contact_loss",
+    "load_fluctuation",
+    "speed_fluctuation",
+)
+
+UNAVAILABLE = {
+    "sliding_friction": "the simulator has no friction force yet (off-line-of-action physics)",
+    "contact_loss": (
+        "contact loss is always active in the simulator (gap-free Heaviside contact); no "
+        "backlash/gap parameter to fit yet"
+    ),
+    "speed_fluctuation": (
+        "measured directly on the tachometer; its effect on the angle-domain averages is not "
+        "fitted yet"
+    ),
+}
+"""Catalogue names without a fitted plug-in yet, and why (reported in the JSON)."""
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One scanned hypothesis: a mechanism at a place (wheel, tooth, order, mode)."""
+
+    mechanism: str
+    wheel: Wheel | None = None
+    tooth: int | None = None
+    order: int | None = None
+    mode_frequency_hz: float | None = None
+    mode_damping_ratio: float | None = None
+
+    @property
+    def label(self) -> str:
+        parts = [self.mechanism]
+        if self.wheel:
+            parts.append(self.wheel)
+        if self.tooth is not None:
+            parts.append(f"tooth {self.tooth}")
+        if self.order is not None:
+            parts.append(f"order {self.order}")
+        if self.mode_frequency_hz is not None:
+            parts.append(f"{self.mode_frequency_hz:.0f} Hz")
+        return " ".join(parts)
+
+
+class Mechanism:
+    """Base class of a plug-in; subclasses fill the class attributes and methods."""
+
+    name: str = ""
+    family_size_hint: int = 1
+    reference: tuple[float, ...] = ()
+    """Linear scan: one simulation per entry, each at this value of the internal vector."""
+    steps: tuple[float, ...] = ()
+    """Finite-difference steps of the internal vector."""
+    transfer_only: bool = False
+    """Changes only the sensor path (no new simulation needed)."""
+    declared_loads: str = ""
+
+    def candidates(self, model: GearPairModel) -> list[Candidate]:
+        return [Candidate(self.name)]
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    def scan_vectors(self) -> list[np.ndarray]:
+        """Internal vectors of the linear scan (one unit direction each, at the reference)."""
+        n = len(self.reference)
+        out = []
+        for i, ref in enumerate(self.reference):
+            v = np.zeros(n)
+            v[i] = ref
+            out.append(v)
+        return out
+
+    def lower_bounds(self) -> list[float]:
+        return [-np.inf] * len(self.steps)
+
+    def upper_bounds(self) -> list[float]:
+        return [np.inf] * len(self.steps)
+
+
+def _deviations(model: GearPairModel, **changes: Any) -> GearPairModel:
+    return model.replace(deviations=dataclasses.replace(model.deviations, **changes))
+
+
+class Eccentricity(Mechanism):
+    """Runout of one wheel: internal vector (a cos φ, a sin φ) in µm."""
+
+    reference = (5.0, 5.0)
+    steps = (0.25, 0.25)
+
+    def __init__(self, wheel: Wheel) -> None:
+        self.wheel: Wheel = wheel
+        self.name = f"{wheel}_eccentricity"
+
+    def candidates(self, model: GearPairModel) -> list[Candidate]:
+        return [Candidate(self.name, self.wheel)]
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        a, phi = params["amplitude_um"], math.radians(params["phase_deg"])
+        return [a * math.cos(phi), a * math.sin(phi)]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        c, s = float(vector[0]), float(vector[1])
+        return {"amplitude_um": math.hypot(c, s), "phase_deg": math.degrees(math.atan2(s, c)) % 360.0}
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        d = model.deviations
+        # Add to what the configuration already has (phasor sum).
+        old_a = getattr(d, f"{self.wheel}_eccentricity_um")
+        old_p = math.radians(getattr(d, f"{self.wheel}_eccentricity_phase_deg"))
+        c = old_a * math.cos(old_p) + params["amplitude_um"] * math.cos(math.radians(params["phase_deg"]))
+        s = old_a * math.sin(old_p) + params["amplitude_um"] * math.sin(math.radians(params["phase_deg"]))
+        return _deviations(
+            model,
+            **{
+                f"{self.wheel}_eccentricity_um": math.hypot(c, s),
+                f"{self.wheel}_eccentricity_phase_deg": math.degrees(math.atan2(s, c)) % 360.0,
+            },
+        )
+
+
+def _teeth(model: GearPairModel, wheel: Wheel) -> int:
+    g = model.geometry
+    return g.pinion_teeth if wheel == "pinion" else g.gear_teeth
+
+
+class ToothMechanism(Mechanism):
+    """A one-tooth mechanism; the scan simulates tooth 1 and shifts it to the other teeth."""
+
+    def candidates(self, model: GearPairModel) -> list[Candidate]:
+        return [
+            Candidate(self.name, wheel, tooth)
+            for wheel in ("pinion", "gear")
+            for tooth in range(1, _teeth(model, wheel) + 1)
+        ]
+
+
+class IndexError_(ToothMechanism):
+    name = "index_error"
+    reference = (5.0,)
+    steps = (0.2,)
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        return [params["error_um"]]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        return {"error_um": float(vector[0])}
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        assert candidate.wheel is not None and candidate.tooth is not None
+        key = f"{candidate.wheel}_pitch_errors_um"
+        errors = list(getattr(model.deviations, key)) or [0.0] * _teeth(model, candidate.wheel)
+        errors[candidate.tooth - 1] += params["error_um"]
+        return _deviations(model, **{key: errors})
+
+
+class ToothSpall(ToothMechanism):
+    """Parallelepiped cavity (the simulator's :class:`~physics.config.Spall` shape, default extents)."""
+
+    name = "tooth_spall"
+    reference = (10.0,)
+    steps = (0.5,)
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        return [params["depth_um"]]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        return {"depth_um": float(vector[0])}
+
+    def lower_bounds(self) -> list[float]:
+        return [0.0]
+
+    def upper_bounds(self) -> list[float]:
+        # Beyond a few static deflections the cavity no longer touches: depth is unidentifiable.
+        return [60.0]
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        assert candidate.wheel is not None and candidate.tooth is not None
+        spall = Spall(wheel=candidate.wheel, tooth=candidate.tooth, depth_um=max(0.0, params["depth_um"]))
+        return _deviations(model, spalls=[*model.deviations.spalls, spall])
+
+
+class ToothCrack(ToothMechanism):
+    name = "tooth_crack"
+    reference = (0.1,)
+    steps = (0.01,)
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        return [params["stiffness_loss_fraction"]]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        return {"stiffness_loss_fraction": float(vector[0])}
+
+    def lower_bounds(self) -> list[float]:
+        return [0.0]
+
+    def upper_bounds(self) -> list[float]:
+        return [0.95]
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        assert candidate.wheel is not None and candidate.tooth is not None
+        loss = min(0.95, max(0.0, params["stiffness_loss_fraction"]))
+        crack = Crack(wheel=candidate.wheel, tooth=candidate.tooth, stiffness_loss_fraction=loss)
+        return _deviations(model, cracks=[*model.deviations.cracks, crack])
+
+
+PROFILE_RELIEF_LENGTH_MM = 6.0
+"""Length of the fitted linear tip relief along the path of contact (both wheels)."""
+
+
+class ProfileModification(Mechanism):
+    """Linear tip relief on every tooth of each wheel (µm at the tip, fixed length)."""
+
+    name = "profile_modification"
+    reference = (10.0, 10.0)
+    steps = (0.5, 0.5)
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        return [params["pinion_tip_relief_um"], params["gear_tip_relief_um"]]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        return {"pinion_tip_relief_um": float(vector[0]), "gear_tip_relief_um": float(vector[1])}
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        d = model.deviations
+        return _deviations(
+            model,
+            pinion_tip_relief_um=d.pinion_tip_relief_um + params["pinion_tip_relief_um"],
+            gear_tip_relief_um=d.gear_tip_relief_um + params["gear_tip_relief_um"],
+            pinion_tip_relief_length_mm=d.pinion_tip_relief_length_mm or PROFILE_RELIEF_LENGTH_MM,
+            gear_tip_relief_length_mm=d.gear_tip_relief_length_mm or PROFILE_RELIEF_LENGTH_MM,
+            tip_relief_exponent=1.0 if d.pinion_tip_relief_um == d.gear_tip_relief_um == 0 else d.tip_relief_exponent,
+        )
+
+
+class LoadFluctuation(Mechanism):
+    """Output torque modulated at an output-shaft order: internal vector (A cos φ, A sin φ) in %."""
+
+    name = "load_fluctuation"
+    reference = (5.0, 5.0)
+    steps = (0.25, 0.25)
+    orders = (1, 2)
+
+    def candidates(self, model: GearPairModel) -> list[Candidate]:
+        return [Candidate(self.name, "gear", order=n) for n in self.orders]
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        a, phi = params["fraction"] * 100.0, math.radians(params["phase_deg"])
+        return [a * math.cos(phi), a * math.sin(phi)]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        c, s = float(vector[0]), float(vector[1])
+        return {"fraction": math.hypot(c, s) / 100.0, "phase_deg": math.degrees(math.atan2(s, c)) % 360.0}
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        op = model.operating
+        return model.replace(
+            operating=dataclasses.replace(
+                op,
+                load_fluctuation_fraction=params["fraction"],
+                load_fluctuation_order=candidate.order or 1,
+                load_fluctuation_phase_deg=params["phase_deg"],
+            )
+        )
+
+
+class StructuralModeMechanism(Mechanism):
+    """A transfer-path mode the configuration lacks: internal vector (ln f, ln ζ); gain linear."""
+
+    name = "structural_mode"
+    transfer_only = True
+    steps = (0.002, 0.05)
+    damping_grid = (0.02, 0.05)
+    grid_step_fraction = 0.02
+    min_frequency_hz = 300.0
+
+    def __init__(self, max_frequency_hz: float = 8000.0) -> None:
+        self.max_frequency_hz = max_frequency_hz
+
+    def candidates(self, model: GearPairModel) -> list[Candidate]:
+        out = []
+        f = self.min_frequency_hz
+        while f <= self.max_frequency_hz:
+            for z in self.damping_grid:
+                out.append(Candidate(self.name, mode_frequency_hz=round(f, 1), mode_damping_ratio=z))
+            f *= 1 + self.grid_step_fraction
+        return out
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        return [math.log(params["frequency_hz"]), math.log(params["damping_ratio"])]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        return {"frequency_hz": math.exp(float(vector[0])), "damping_ratio": math.exp(float(vector[1]))}
+
+    def lower_bounds(self) -> list[float]:
+        return [math.log(50.0), math.log(0.003)]
+
+    def upper_bounds(self) -> list[float]:
+        return [math.log(50_000.0), math.log(0.5)]
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        from physics.config import StructuralMode
+
+        sensors = list(model.sensors)
+        s0 = sensors[0]
+        mode = StructuralMode(
+            frequency_hz=params["frequency_hz"],
+            damping_ratio=params["damping_ratio"],
+            gain_m_s2_per_n=params.get("gain_m_s2_per_n", 0.0),
+        )
+        sensors[0] = dataclasses.replace(s0, modes=[*s0.modes, mode])
+        return model.replace(sensors=sensors)
+
+
+CATALOGUE: dict[str, Mechanism] = {
+    m.name: m
+    for m in (
+        Eccentricity("pinion"),
+        Eccentricity("gear"),
+        IndexError_(),
+        ToothSpall(),
+        ToothCrack(),
+        ProfileModification(),
+        StructuralModeMechanism(),
+        LoadFluctuation(),
+    )
+}
+"""The fitted plug-ins, by catalogue name."""
+
+CONFUSABLE: dict[frozenset[str], str] = {
+    frozenset({"gear_eccentricity", "load_fluctuation"}): (
+        "a record at another load (load-fluctuation sidebands grow with torque, eccentricity is "
+        "geometric)"
+    ),
+    frozenset({"tooth_crack", "tooth_spall"}): (
+        "a record at another load (a crack is a stiffness loss and scales with load, a spall is "
+        "depth-limited geometry)"
+    ),
+    frozenset({"index_error", "tooth_spall"}): "a record at another load or a higher SNR record",
+    frozenset({"profile_modification", "structural_mode"}): (
+        "a record at another speed (profile content stays at fixed orders, a resonance stays "
+        "at fixed Hz)"
+    ),
+}
+"""Declared confusable pairs and the observable that would separate them."""
