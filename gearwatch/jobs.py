@@ -137,9 +137,9 @@ def _expected_parameters(params: AnalysisParameters, campaign: CampaignConfig) -
 
 def _same_parameters(stored: dict[str, Any], expected: dict[str, Any]) -> bool:
     """Stored result parameters match on every key both sides know."""
-    from storage.repositories import _json_safe
+    from storage.repositories import json_safe
 
-    expected = _json_safe(expected)
+    expected = json_safe(expected)
     return all(stored[key] == value for key, value in expected.items() if key in stored)
 
 
@@ -310,7 +310,7 @@ def _store(
 ) -> JobResult:
     """Write the outcome of an attempt: rejection, or results (+ alarms on first acceptance)."""
     from storage.evaluation import evaluate_record
-    from storage.repositories import RecordRepository, _json_safe
+    from storage.repositories import RecordRepository, json_safe
 
     records = RecordRepository(session)
     analysis = attempt.analysis
@@ -320,7 +320,7 @@ def _store(
             record.quality = {"internal_error": True, "error": attempt.error}
         else:
             record.quality = {
-                "rejected_parameters": _json_safe(_expected_parameters(params, campaign)),
+                "rejected_parameters": json_safe(_expected_parameters(params, campaign)),
                 "error": attempt.error,
             }
         session.flush()

@@ -63,16 +63,16 @@ def parameters_sha256(parameters: dict[str, Any]) -> str:
     return hashlib.sha256(canonical.encode()).hexdigest()
 
 
-def _json_safe(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
     """Plain JSON: NaN and infinities become ``None`` (PostgreSQL's json refuses them)."""
     if isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
+        return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
+        return [json_safe(v) for v in value]
     if isinstance(value, np.generic):
-        return _json_safe(value.item())
+        return json_safe(value.item())
     return value
 
 
@@ -140,7 +140,7 @@ class CampaignRepository:
                 f"campaign {config.id!r} belongs to rig {campaign.rig.name!r}, not {rig.name!r}"
             )
         campaign.description = config.description
-        campaign.manifest = _json_safe(
+        campaign.manifest = json_safe(
             {
                 "rig": dataclasses.asdict(config.rig),
                 "sample_rate_hz": config.sample_rate_hz,
@@ -320,7 +320,7 @@ class RecordRepository:
         record.speed_max_rpm = float(quality.speed_max_rpm)
         record.speed_variation = float(quality.speed_variation)
         record.revolutions = int(analysis.revolutions)
-        record.quality = _json_safe(dataclasses.asdict(quality))
+        record.quality = json_safe(dataclasses.asdict(quality))
         record.processed_at = utcnow()
         self.session.flush()
         return record
@@ -351,7 +351,7 @@ class RecordRepository:
         return self.session.scalar(
             sa.select(ResultVersion).where(
                 ResultVersion.record_id == record_id,
-                ResultVersion.parameters_sha256 == parameters_sha256(_json_safe(parameters)),
+                ResultVersion.parameters_sha256 == parameters_sha256(json_safe(parameters)),
             )
         )
 
@@ -361,7 +361,7 @@ class RecordRepository:
         Earlier versions are kept (no longer current). The same parameters twice is a
         :class:`Conflict` — look it up with :meth:`result_for_parameters` first.
         """
-        parameters = _json_safe(dict(analysis.provenance.parameters))
+        parameters = json_safe(dict(analysis.provenance.parameters))
         digest = parameters_sha256(parameters)
         if self.result_for_parameters(record.id, parameters) is not None:
             raise Conflict(f"record {record.id} already has a result for these parameters")
@@ -408,7 +408,7 @@ class RecordRepository:
                     speed_rpm=float(ch.speed_rpm),
                     samples_per_rev=int(ch.samples_per_rev),
                     worst_tooth=None if ch.worst_tooth is None else int(ch.worst_tooth),
-                    baseline_stats=_json_safe(dict(getattr(ch, "baseline_stats", {}) or {})),
+                    baseline_stats=json_safe(dict(getattr(ch, "baseline_stats", {}) or {})),
                 )
             )
             for name, values in ch.curves.items():
@@ -799,7 +799,7 @@ class AlarmRuleRepository:
         if track is None:
             track = AlarmTrack(rule_id=rule_id, channel_id=channel_id, tooth=tooth, state=state)
             self.session.add(track)
-        track.state = _json_safe(state)
+        track.state = json_safe(state)
         track.last_taken_at = taken_at
         track.updated_at = utcnow()
         return track
@@ -1041,7 +1041,7 @@ class AuditRepository:
         self, who: str, action: str, target: str = "", details: dict[str, Any] | None = None
     ) -> AuditEntry:
         entry = AuditEntry(
-            who=who, action=action, target=target, details=_json_safe(details or {}), at=utcnow()
+            who=who, action=action, target=target, details=json_safe(details or {}), at=utcnow()
         )
         self.session.add(entry)
         self.session.flush()
