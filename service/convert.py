@@ -136,8 +136,8 @@ def result_out(session: Session, result: ResultVersion, *, details: bool) -> sch
         if value is not None:
             metrics.setdefault(metric.channel_id, {})[metric.metric] = value
     curve_names: dict[str, list[str]] = {}
-    for curve in records.curves(result.id):
-        curve_names.setdefault(curve.channel, []).append(curve.name)
+    for channel, name, _length in records.curve_index(result.id):
+        curve_names.setdefault(channel, []).append(name)
     for ch in records.channel_results(result.id):
         out.channels.append(
             schemas.ChannelResultOut(
@@ -201,6 +201,8 @@ def rule_out(rule: AlarmRule) -> schemas.AlarmRuleOut:
         alarm_level=rule.alarm_level,
         clear_level=rule.clear_level,
         persistence=rule.persistence,
+        spread_floor_fraction=rule.spread_floor_fraction,
+        spread_floor_abs=rule.spread_floor_abs,
         enabled=rule.enabled,
         updated_at=rule.updated_at,
     )

@@ -365,21 +365,32 @@ class AckIn(BaseModel):
 
 
 class AlarmRuleIn(BaseModel):
-    """One rule: levels are in baseline units (robust spreads above the baseline centre)."""
+    """One rule; levels are in baseline units (robust spreads on the worse side of the baseline
+    centre). An omitted setting keeps its current value (new rule: the storage default).
+    Levels must satisfy clear_level < warning_level <= alarm_level."""
 
     model_config = ConfigDict(extra="forbid")
     indicator: AlarmIndicatorName = Field(examples=["mci_depth"])
-    baseline_records: int = Field(default=10, ge=1, le=10_000, examples=[10])
-    warning_level: float = Field(default=4.0, gt=0, le=1e6, examples=[4.0])
-    alarm_level: float = Field(default=8.0, gt=0, le=1e6, examples=[8.0])
-    clear_level: float = Field(default=2.0, ge=0, le=1e6, examples=[2.0])
-    persistence: int = Field(default=3, ge=1, le=1000, examples=[3])
-    enabled: bool = True
+    baseline_records: int | None = Field(default=None, ge=1, le=10_000, examples=[8])
+    warning_level: float | None = Field(default=None, gt=0, le=1e6, examples=[4.0])
+    alarm_level: float | None = Field(default=None, gt=0, le=1e6, examples=[8.0])
+    clear_level: float | None = Field(default=None, ge=0, le=1e6, examples=[2.0])
+    persistence: int | None = Field(default=None, ge=1, le=1000, examples=[2])
+    spread_floor_fraction: float | None = Field(
+        default=None, ge=0, le=100, description="Spread floor as a fraction of |centre|."
+    )
+    spread_floor_abs: float | None = Field(
+        default=None, gt=0, le=1e9, description="Absolute spread floor (indicator's unit)."
+    )
+    enabled: bool | None = None
 
     @model_validator(mode="after")
     def _levels_in_order(self) -> AlarmRuleIn:
-        if not self.clear_level < self.warning_level <= self.alarm_level:
-            raise ValueError("levels must satisfy clear_level < warning_level <= alarm_level")
+        clear, warning, alarm = self.clear_level, self.warning_level, self.alarm_level
+        if clear is not None and warning is not None and not clear < warning:
+            raise ValueError("clear_level must be below warning_level")
+        if warning is not None and alarm is not None and not warning <= alarm:
+            raise ValueError("warning_level must not exceed alarm_level")
         return self
 
 
@@ -390,6 +401,8 @@ class AlarmRuleOut(BaseModel):
     alarm_level: float
     clear_level: float
     persistence: int
+    spread_floor_fraction: float
+    spread_floor_abs: float
     enabled: bool
     updated_at: dt.datetime | None = None
 

@@ -132,7 +132,7 @@ def put_rule(
         )
     rig = rig_by_name(db, rig_id)
     rules = AlarmRuleRepository(db)
-    settings = body.model_dump(exclude={"indicator"})
+    settings = body.model_dump(exclude={"indicator"}, exclude_none=True)
     existing = rules.get_for(rig.id, indicator)
     if existing is None:
         rule = rules.create(rig.id, indicator, **settings)

@@ -2,7 +2,7 @@
 
 Day ``d`` (0-based) of ``days`` has tooth depths ``healthy_depth(tooth, d)``; from
 ``onset_day`` on, ``spall_tooth`` gets ``spall_depth(d)``, far above its baseline, so the
-default ``mci_depth`` rule (baseline 10 records, persistence 3) raises an alarm on day
+``mci_depth`` rule :data:`MCI_RULE` (baseline 10 records, persistence 3) raises an alarm on day
 ``onset_day + 2``. One extra record is rejected.
 """
 
@@ -17,6 +17,15 @@ from tests.storage.factories import analysis, campaign_config
 
 T0 = dt.datetime(2026, 3, 1, 8, 0, tzinfo=dt.UTC)
 TEETH = 20
+MCI_RULE = {
+    "baseline_records": 10,
+    "warning_level": 4.0,
+    "alarm_level": 8.0,
+    "clear_level": 2.0,
+    "persistence": 3,
+    "spread_floor_fraction": 0.05,
+    "spread_floor_abs": 1e-6,
+}
 
 
 def healthy_depth(tooth: int, day: int) -> float:
@@ -54,7 +63,11 @@ def seed_campaign(
 
     config = campaign_config(campaign, rig, pinion_teeth=TEETH)
     stored = CampaignRepository(session).ensure(config)
-    AlarmRuleRepository(session).ensure_defaults(stored.rig_id)
+    rules = AlarmRuleRepository(session)
+    rules.ensure_defaults(stored.rig_id)
+    mci_rule = rules.get_for(stored.rig_id, "mci_depth")
+    assert mci_rule is not None
+    rules.update(mci_rule.id, **MCI_RULE)  # known settings, whatever the defaults become
     records = RecordRepository(session)
     seeded = Seeded(rig, campaign, spall_tooth=spall_tooth, onset_day=onset_day)
     for day in range(days):

@@ -233,6 +233,7 @@ def test_operators_change_alarm_rules(api: Api, seeded: Seeded) -> None:
         "enabled": True,
     }
     url = "/api/v1/rigs/rig-a/alarm-rules/mci_depth"
+    op = api.headers("operator")
     error_of(api.client.put(url, json=new, headers=api.headers("viewer")), 403)
     response = api.client.put(url, json=new, headers=api.headers("operator"))
     assert response.status_code == 200, response.text
@@ -253,13 +254,26 @@ def test_operators_change_alarm_rules(api: Api, seeded: Seeded) -> None:
         json={"indicator": "diff_energy"},
         headers=api.headers("operator"),
     )
-    assert added.status_code == 200 and added.json()["persistence"] == 3
+    from storage.models import AlarmRule
+
+    default_persistence = AlarmRule.__table__.c.persistence.default.arg
+    assert added.status_code == 200 and added.json()["persistence"] == default_persistence
+    partial = api.client.put(url, json={"indicator": "mci_depth", "persistence": 4}, headers=op)
+    assert partial.json()["persistence"] == 4 and partial.json()["baseline_records"] == 5
+    # against the stored clear level 1.5, a warning level of 1.0 breaks the order
+    clash = api.client.put(url, json={"indicator": "mci_depth", "warning_level": 1.0}, headers=op)
+    error_of(clash, 422)
     deleted = api.client.delete(
         "/api/v1/rigs/rig-a/alarm-rules/diff_energy", headers=api.headers("operator")
     )
     assert deleted.status_code == 204
     actions = [e["action"] for e in api.get("/api/v1/audit", "admin").json()["items"]]
-    assert actions[:3] == ["alarm_rule.delete", "alarm_rule.put", "alarm_rule.put"]
+    assert actions[:4] == [
+        "alarm_rule.delete",
+        "alarm_rule.put",
+        "alarm_rule.put",
+        "alarm_rule.put",
+    ]
 
 
 # -- records, results, curves ---------------------------------------------------------------
