@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import functools
 import logging
 import os
 from collections.abc import Callable
@@ -241,12 +242,18 @@ def _current_id(records: Any, record_id: int) -> int | None:
     return None if current is None else int(current.id)
 
 
+@functools.lru_cache(maxsize=8)
+def _manifest_index(campaign: CampaignConfig) -> dict[Path, RecordEntry]:
+    """Resolved record path → manifest entry (a replay looks up every record of a campaign)."""
+    return {campaign.record_path(entry).resolve(): entry for entry in campaign.records}
+
+
 def _manifest_entry(path: Path, campaign: CampaignConfig) -> RecordEntry | None:
-    resolved = path.resolve()
-    for entry in campaign.records:
-        if campaign.record_path(entry).resolve() == resolved:
-            return entry
-    return None
+    try:
+        index = _manifest_index(campaign)
+    except TypeError:  # an unhashable campaign (never from the manifest loader)
+        index = {campaign.record_path(e).resolve(): e for e in campaign.records}
+    return index.get(path.resolve())
 
 
 def _taken_at_from_manifest(path: Path, campaign: CampaignConfig) -> dt.datetime | None:
