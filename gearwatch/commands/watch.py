@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         parameters_from_args,
         raw_store_root,
     )
-    from gearwatch.errors import InputError
+    from gearwatch.errors import InputError, ManifestError
     from storage.db import open_database
     from storage.raw_store import RawStore
 
@@ -131,7 +131,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"watching {folder} every {args.interval:g} s (Ctrl-C to stop)", file=sys.stderr)
     try:
         while True:
-            for path, result in watcher.poll(settle=not args.once):
+            try:
+                done = watcher.poll(settle=not args.once)
+            except ManifestError as error:
+                if args.once:
+                    raise
+                # A manifest being edited must not stop a long-running watcher.
+                print(f"gearwatch: warning: {error} (retrying)", file=sys.stderr, flush=True)
+                done = []
+            for path, result in done:
                 line = f"{path.relative_to(folder)}: {result.outcome}"
                 if result.reason:
                     line += f" ({result.reason})"

@@ -227,3 +227,50 @@ def test_replay_with_new_parameters_can_reevaluate_the_alarms(db_engine: sa.Engi
     with session_scope(factory) as session:
         assert AlarmRepository(session).count() == 0
     assert campaign.id == summary.campaign
+
+
+@pytest.mark.slow
+def test_watch_command_ingests_dropped_files_until_interrupted(tmp_path) -> None:
+    """The real polling loop as a process: a file dropped while it runs is ingested with the
+    real chain; Ctrl-C (SIGINT) ends it with a summary and exit code 0."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    folder = tmp_path / "drop"
+    make_campaign(folder, [1.0])
+    repo = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(repo)}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "gearwatch", "watch", str(folder), "--interval", "0.2",
+         "--db", f"sqlite:///{tmp_path / 'w.db'}", "--raw-store", str(tmp_path / "raw")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        engine = sa.create_engine(f"sqlite:///{tmp_path / 'w.db'}")
+
+        def records() -> int:
+            try:
+                with engine.connect() as connection:
+                    return int(connection.execute(sa.text(
+                        "SELECT count(*) FROM records WHERE status = 'accepted'")).scalar() or 0)
+            except sa.exc.OperationalError:  # not migrated yet
+                return 0
+
+        while records() < 1:
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.2)
+        write_record(folder / "dropped.wav", 1.7)
+        while records() < 2:
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.2)
+        engine.dispose()
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    assert process.returncode == 0, err
+    assert "day00.wav: accepted" in out and "dropped.wav: accepted" in out
+    assert "ingested: 2 accepted" in out
