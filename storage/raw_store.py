@@ -26,7 +26,9 @@ class RawStore:
     """A content-addressed file store rooted at ``root`` (created on first use)."""
 
     def __init__(self, root: str | Path = DEFAULT_RAW_STORE) -> None:
-        self.root = Path(root)
+        # Absolute, so that the locations stored in the database do not depend on the
+        # working directory of whoever reads them later (service, CLI, workers).
+        self.root = Path(root).expanduser().absolute()
 
     def path_for(self, sha256: str, suffix: str = "") -> Path:
         if not _SHA256.match(sha256):

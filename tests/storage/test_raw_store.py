@@ -48,3 +48,11 @@ def test_keep_bytes_and_path_validation(tmp_path) -> None:
         store.path_for(digest, "/../x")
     copy = store.copy_out(digest, ".blf", tmp_path / "copy.blf")
     assert copy.read_bytes() == b"frames"
+
+
+def test_locations_are_absolute(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    source = tmp_path / "r.wav"
+    source.write_bytes(b"x")
+    kept = RawStore("raw-store").keep(source)
+    assert kept.is_absolute() and kept.is_relative_to(tmp_path / "raw-store")
