@@ -12,6 +12,7 @@ from fastapi.staticfiles import StaticFiles
 from gearwatch.version import __version__
 from service.errors import install_error_handlers
 from service.metrics import RequestMetrics, metrics_middleware
+from service.queries import ResponseCache
 from service.settings import Settings, get_settings
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
@@ -72,6 +73,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.state.metrics = RequestMetrics()
+    app.state.trend_cache = ResponseCache()
     install_error_handlers(app)
     app.middleware("http")(metrics_middleware(app.state.metrics))
     for router in routers.ALL:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Annotated
@@ -14,6 +15,7 @@ from gearwatch.errors import Forbidden, Unauthorized
 from service.settings import Settings
 
 ROLE_RANK = {"viewer": 0, "operator": 1, "admin": 2}
+LAST_USED_RESOLUTION = dt.timedelta(minutes=1)
 
 _bearer = HTTPBearer(
     auto_error=False,
@@ -60,16 +62,21 @@ def get_current_key(
     db: DbSession,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
 ) -> Caller:
+    from storage.models import utcnow
     from storage.repositories import ApiKeyRepository
 
     if credentials is None or credentials.scheme.lower() != "bearer" or not credentials.credentials:
         raise Unauthorized("an API key is required: Authorization: Bearer <key>")
-    key = ApiKeyRepository(db).verify(credentials.credentials)
+    key = ApiKeyRepository(db).verify(credentials.credentials, touch=False)
     if key is None:
         raise Unauthorized("unknown or revoked API key")
     caller = Caller(key_id=key.id, prefix=key.prefix, name=key.name, role=key.role)
-    # last_used_at is bookkeeping: commit it now, apart from whatever the handler does.
-    db.commit()
+    # last_used_at is bookkeeping, kept to the minute: a write per request would serialise
+    # every reader on SQLite. Committed now, apart from whatever the handler does.
+    now = utcnow()
+    if key.last_used_at is None or now - key.last_used_at > LAST_USED_RESOLUTION:
+        key.last_used_at = now
+        db.commit()
     return caller
 
 

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import hashlib
 from typing import Annotated
 
-from fastapi import APIRouter, Path, Query, Response
+from fastapi import APIRouter, Path, Query, Request, Response
+from sqlalchemy.orm import Session
 
 from service import schemas
 from service.convert import rig_by_name, rig_out, rule_out
 from service.deps import CurrentKey, DbSession, OperatorKey
 from service.routers.common import RigName, errors
+from storage.models import Rig
 
 router = APIRouter(prefix="/api/v1/rigs", tags=["rigs"])
 
@@ -41,10 +44,14 @@ def get_rig(rig_id: RigName, db: DbSession, _caller: CurrentKey) -> schemas.RigO
     "Without `tooth` every pinion tooth is returned; `values[i][j]` belongs to `records[i]` "
     "and `teeth[j]`. With several accelerometer channels, `channel` chooses one (default: the "
     "first by name).",
-    responses=errors(401, 404, 422),
+    responses={
+        304: {"description": "Not modified (If-None-Match matched the ETag)"},
+        **errors(401, 404, 422),
+    },
 )
 def trends(
     rig_id: RigName,
+    request: Request,
     db: DbSession,
     _caller: CurrentKey,
     indicator: Annotated[
@@ -57,10 +64,34 @@ def trends(
         str | None,
         Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["acc1"]),
     ] = None,
+) -> Response:
+    from service.queries import ResponseCache, trend_version
+
+    rig = rig_by_name(db, rig_id)
+    # Trends only change when indicator rows are added: serve the serialized answer again
+    # while the rig's fingerprint is unchanged (and 304 to a client that already has it).
+    version = trend_version(db, rig.id)
+    etag = _etag(rig.id, indicator, tooth, channel, version)
+    if request.headers.get("if-none-match") == etag:
+        return Response(status_code=304, headers={"ETag": etag})
+    cache: ResponseCache = request.app.state.trend_cache
+    cache_key = (rig.id, indicator, tooth, channel)
+    body = cache.get(cache_key, version)
+    if body is None:
+        body = _trend(db, rig, indicator, tooth, channel).model_dump_json().encode()
+        cache.put(cache_key, version, body)
+    return Response(body, media_type="application/json", headers={"ETag": etag})
+
+
+def _etag(*key: object) -> str:
+    return '"' + hashlib.sha256(repr(key).encode()).hexdigest()[:32] + '"'
+
+
+def _trend(
+    db: Session, rig: Rig, indicator: str, tooth: int | None, channel: str | None
 ) -> schemas.TrendOut:
     from storage.repositories import TrendRepository
 
-    rig = rig_by_name(db, rig_id)
     points = TrendRepository(db).trend(rig.id, indicator, tooth, channel=channel)
     if channel is None and points:
         channel = min(p.channel for p in points)
@@ -86,7 +117,7 @@ def trends(
             values[row][j] = point.value
     return schemas.TrendOut(
         rig_id=rig.name,
-        indicator=indicator,
+        indicator=indicator,  # type: ignore[arg-type]
         channel=channel,
         teeth=teeth,
         records=records,

@@ -496,3 +496,40 @@ def test_upload_with_workers_keeps_the_file_and_queues_the_job(
     assert [(r["sha256"], r["file_name"], r["label"]) for r in records] == [
         (body["sha256"], "day07.wav", "day 7")
     ]
+
+
+def test_trend_answers_are_cached_until_the_rig_gets_new_results(api: Api, seeded: Seeded) -> None:
+    import datetime as dt
+
+    from storage.repositories import CampaignRepository, RecordRepository
+    from tests.storage.factories import analysis
+
+    url = "/api/v1/rigs/rig-a/trends?indicator=mci_depth"
+    first = api.get(url)
+    etag = first.headers["etag"]
+    assert api.get(url).content == first.content
+    not_modified = api.client.get(url, headers={**api.headers("viewer"), "If-None-Match": etag})
+    assert not_modified.status_code == 304
+    other = api.get(url + "&tooth=2").headers["etag"]
+    assert other != etag
+
+    with api.session() as session:
+        records = RecordRepository(session)
+        campaign = CampaignRepository(session).get_by_name("camp-a")
+        assert campaign is not None
+        record = records.add(
+            campaign,
+            sha256="e" * 64,
+            file_name="late.wav",
+            raw_location="/nonexistent/late.wav",
+            taken_at=seeded.taken_at[-1] + dt.timedelta(days=1),
+        )
+        late = analysis(sha256="e" * 64, teeth=20, mci_depth=0.5)
+        records.mark_accepted(record, late)
+        records.add_result(record, late)
+        session.commit()
+    changed = api.client.get(url, headers={**api.headers("viewer"), "If-None-Match": etag})
+    assert changed.status_code == 200 and changed.headers["etag"] != etag
+    trend = changed.json()
+    assert len(trend["records"]) == len(seeded.record_ids) + 1
+    assert trend["values"][-1] == [0.5] * 20
