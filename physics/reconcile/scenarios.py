@@ -1,0 +1,269 @@
+"""Blinded proof on concealed data: a scenario generator and a separate scorer.
+
+:func:`draw_scenarios` draws, per class, a hidden mechanism and its parameters and returns
+:class:`Scenario` objects whose ``truth`` model differs from the ``fit_model`` (what the
+user configured) by the hidden physics *and* by secondary model-form error (a finer
+integration step, base parameters perturbed within tolerance). :func:`measured_of` turns a
+scenario into a :class:`~physics.reconcile.method.MeasuredRecord` without files. The key
+(``Scenario.hidden``) is only read by :func:`score`, which grades a result JSON.
+
+Classes
+-------
+``control``            nothing missing; base parameters perturbed within tolerance.
+``below_raw_floor``    a small pinion eccentricity: under the raw single-record noise floor,
+                       above the averaged floor.
+``masked``             a weak pinion index error under a stronger pinion eccentricity (same
+                       pinion orders).
+``occupied``           an index error under the sidebands of a monitored (configured) spall.
+``gear_shaft``         gear eccentricity or a gear-tooth index error (non-synchronous with the
+                       pinion; synchronous with the hunting period).
+``out_of_catalogue``   support stiffness changed (a bearing much softer than configured).
+
+Examples
+--------
+>>> scenarios = draw_scenarios(["control", "masked"], per_class=1, seed=3)
+>>> [s.klass for s in scenarios]
+['control', 'masked']
+>>> sorted(h["mechanism"] for h in scenarios[1].hidden)
+['index_error', 'pinion_eccentricity']
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from physics.config import GearPairModel, Spall, StructuralMode
+from physics.reconcile.method import MeasuredRecord
+
+CLASSES = ("control", "below_raw_floor", "masked", "occupied", "gear_shaft", "out_of_catalogue")
+
+MAIN_PARAMETER = {
+    "pinion_eccentricity": "amplitude_um",
+    "gear_eccentricity": "amplitude_um",
+    "index_error": "error_um",
+    "tooth_spall": "depth_um",
+    "tooth_crack": "stiffness_loss_fraction",
+    "load_fluctuation": "fraction",
+    "profile_modification": "pinion_tip_relief_um",
+    "structural_mode": "frequency_hz",
+}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    id: str
+    klass: str
+    truth: GearPairModel
+    fit_model: GearPairModel
+    hidden: list[dict[str, Any]] = field(default_factory=list)
+    """The key: hidden mechanisms (name, wheel, tooth, parameters). Only :func:`score` reads it."""
+    seconds: float = 6.0
+    seed: int = 0
+
+
+def default_base(warmup_s: float = 0.2) -> GearPairModel:
+    """The fitting model of the proofs: the seed's rig, ideal geometry."""
+    m = GearPairModel()
+    return m.replace(acquisition=dataclasses.replace(m.acquisition, warmup_s=warmup_s))
+
+
+def _perturbed(base: GearPairModel, rng: np.random.Generator) -> GearPairModel:
+    """Within tolerance: load ±5 %, mesh stiffness ±3 %, damping ±20 %, modes ±1 %, gains ±10 %;
+    and a finer integration step (model-form error)."""
+    op = dataclasses.replace(base.operating, load_torque_nm=base.operating.load_torque_nm * rng.uniform(0.95, 1.05))
+    mesh = dataclasses.replace(
+        base.mesh,
+        stiffness_per_length_n_per_m2=base.mesh.stiffness_per_length_n_per_m2 * rng.uniform(0.97, 1.03),
+        damping_ratio=base.mesh.damping_ratio * rng.uniform(0.8, 1.2),
+    )
+    sensors = [
+        dataclasses.replace(
+            s,
+            modes=[
+                StructuralMode(
+                    frequency_hz=md.frequency_hz * rng.uniform(0.99, 1.01),
+                    damping_ratio=md.damping_ratio * rng.uniform(0.9, 1.1),
+                    gain_m_s2_per_n=md.gain_m_s2_per_n * rng.uniform(0.9, 1.1),
+                )
+                for md in s.modes
+            ],
+        )
+        for s in base.sensors
+    ]
+    acq = dataclasses.replace(base.acquisition, oversampling=base.acquisition.oversampling + 4)
+    return base.replace(operating=op, mesh=mesh, sensors=sensors, acquisition=acq)
+
+
+def _dev(model: GearPairModel, **changes: Any) -> GearPairModel:
+    return model.replace(deviations=dataclasses.replace(model.deviations, **changes))
+
+
+def _with_index(model: GearPairModel, wheel: str, tooth: int, error_um: float) -> GearPairModel:
+    teeth = model.geometry.pinion_teeth if wheel == "pinion" else model.geometry.gear_teeth
+    errors = [0.0] * teeth
+    errors[tooth - 1] = error_um
+    return _dev(model, **{f"{wheel}_pitch_errors_um": errors})
+
+
+def draw_scenario(klass: str, rng: np.random.Generator, base: GearPairModel, index: int) -> Scenario:
+    """One scenario of ``klass`` (see module docstring)."""
+    truth = _perturbed(base, rng)
+    fit_model = base
+    hidden: list[dict[str, Any]] = []
+    z1, z2 = base.geometry.pinion_teeth, base.geometry.gear_teeth
+    if klass == "control":
+        pass
+    elif klass == "below_raw_floor":
+        amp, phase = float(rng.uniform(0.8, 2.0)), float(rng.uniform(0, 360))
+        truth = _dev(truth, pinion_eccentricity_um=amp, pinion_eccentricity_phase_deg=phase)
+        hidden.append({"mechanism": "pinion_eccentricity", "wheel": "pinion", "tooth": None,
+                       "parameters": {"amplitude_um": amp, "phase_deg": phase}})
+    elif klass == "masked":
+        amp, phase = float(rng.uniform(5.0, 8.0)), float(rng.uniform(0, 360))
+        tooth = int(rng.integers(1, z1 + 1))
+        err = float(rng.choice([-1, 1]) * rng.uniform(2.0, 4.0))
+        truth = _with_index(_dev(truth, pinion_eccentricity_um=amp, pinion_eccentricity_phase_deg=phase), "pinion", tooth, err)
+        hidden += [
+            {"mechanism": "pinion_eccentricity", "wheel": "pinion", "tooth": None,
+             "parameters": {"amplitude_um": amp, "phase_deg": phase}},
+            {"mechanism": "index_error", "wheel": "pinion", "tooth": tooth, "parameters": {"error_um": err}},
+        ]
+    elif klass == "occupied":
+        spall = Spall(wheel="pinion", tooth=16, depth_um=10.0)
+        fit_model = _dev(base, spalls=[spall])
+        tooth = int(rng.choice([t for t in range(1, z1 + 1) if abs(t - 16) > 1]))
+        err = float(rng.choice([-1, 1]) * rng.uniform(2.0, 5.0))
+        truth = _with_index(_dev(truth, spalls=[spall]), "pinion", tooth, err)
+        hidden.append({"mechanism": "index_error", "wheel": "pinion", "tooth": tooth, "parameters": {"error_um": err}})
+    elif klass == "gear_shaft":
+        if index % 2 == 0:
+            amp, phase = float(rng.uniform(2.0, 6.0)), float(rng.uniform(0, 360))
+            truth = _dev(truth, gear_eccentricity_um=amp, gear_eccentricity_phase_deg=phase)
+            hidden.append({"mechanism": "gear_eccentricity", "wheel": "gear", "tooth": None,
+                           "parameters": {"amplitude_um": amp, "phase_deg": phase}})
+        else:
+            tooth = int(rng.integers(1, z2 + 1))
+            err = float(rng.choice([-1, 1]) * rng.uniform(3.0, 6.0))
+            truth = _with_index(truth, "gear", tooth, err)
+            hidden.append({"mechanism": "index_error", "wheel": "gear", "tooth": tooth, "parameters": {"error_um": err}})
+    elif klass == "out_of_catalogue":
+        factor = float(rng.uniform(0.15, 0.3))
+        pinion = dataclasses.replace(
+            truth.pinion, bearing_radial_stiffness_n_per_m=truth.pinion.bearing_radial_stiffness_n_per_m * factor
+        )
+        truth = truth.replace(pinion=pinion)
+        hidden.append({"mechanism": "support_stiffness", "wheel": "pinion", "tooth": None,
+                       "parameters": {"stiffness_factor": factor}, "in_catalogue": False})
+    else:
+        raise ValueError(f"unknown scenario class {klass!r}; one of {', '.join(CLASSES)}")
+    return Scenario(
+        id=f"{klass}-{index}", klass=klass, truth=truth, fit_model=fit_model, hidden=hidden,
+        seed=int(rng.integers(0, 2**31)),
+    )
+
+
+def draw_scenarios(
+    classes: list[str] | tuple[str, ...] = CLASSES, per_class: int = 1, seed: int = 0,
+    base: GearPairModel | None = None,
+) -> list[Scenario]:
+    rng = np.random.default_rng(seed)
+    base = base or default_base()
+    return [draw_scenario(k, rng, base, i) for k in classes for i in range(per_class)]
+
+
+def measured_of(scenario: Scenario, seconds: float | None = None) -> MeasuredRecord:
+    """Simulate the hidden truth and return the record as the reconciliation sees it."""
+    from physics.simulator import simulate
+
+    result = simulate(scenario.truth, seconds=seconds or scenario.seconds, seed=scenario.seed)
+    name = scenario.truth.sensors[0].name
+    return MeasuredRecord(
+        result.channels[name], result.sample_rate_hz, result.tach_pulse_times_s,
+        scenario.truth.tachometer.pulses_per_rev,
+    )
+
+
+# ----------------------------------------------------------------------------- scorer
+
+
+def _relative_error(hidden: dict[str, Any], found: dict[str, Any]) -> float | None:
+    key = MAIN_PARAMETER.get(hidden["mechanism"])
+    if key is None or key not in hidden["parameters"] or key not in found["parameters"]:
+        return None
+    true = float(hidden["parameters"][key])
+    est = float(found["parameters"][key])
+    return abs(est - true) / max(abs(true), 1e-12)
+
+
+def score(scenario: Scenario, result_json: dict[str, Any]) -> dict[str, Any]:
+    """Grade one result against the key: right mechanism and place, parameter error, guard."""
+    findings = result_json["findings"]
+    in_catalogue = [h for h in scenario.hidden if h.get("in_catalogue", True)]
+    row: dict[str, Any] = {
+        "id": scenario.id,
+        "class": scenario.klass,
+        "status": result_json["status"],
+        "n_findings": len(findings),
+        "chi2_dof": result_json["final"]["chi2_dof"],
+        "excess_explained": result_json["final"]["excess_explained"],
+    }
+    if scenario.klass == "control":
+        row["false_finding"] = bool(findings)
+        return row
+    if not in_catalogue:
+        row["flagged_not_explained"] = result_json["status"] != "explained"
+        row["confident_wrong_name"] = result_json["status"] == "explained" and bool(findings)
+        return row
+    hits, errors = 0, []
+    for h in in_catalogue:
+        match = next(
+            (
+                f for f in findings
+                if f["mechanism"] == h["mechanism"]
+                and (h["wheel"] is None or f["wheel"] == h["wheel"])
+                and (h["tooth"] is None or f["tooth"] == h["tooth"])
+            ),
+            None,
+        )
+        if match is not None:
+            hits += 1
+            err = _relative_error(h, match)
+            if err is not None:
+                errors.append(err)
+    row["right_mechanism_and_place"] = hits == len(in_catalogue)
+    row["parameter_error"] = float(np.median(errors)) if errors else math.nan
+    row["within_bounds_and_90pct"] = (
+        result_json["status"] == "explained" and float(result_json["final"]["excess_explained"]) >= 0.9
+    )
+    row["extra_findings"] = max(0, len(findings) - hits)
+    return row
+
+
+def score_table(rows: list[dict[str, Any]]) -> str:
+    """Per-class summary (Markdown)."""
+    lines = [
+        "| class | runs | right mech+place | median param err | explained & ≥90 % excess | "
+        "false findings (controls) | flagged not explained (out of catalogue) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for klass in CLASSES:
+        rs = [r for r in rows if r["class"] == klass]
+        if not rs:
+            continue
+
+        def frac(key: str, rs: list[dict[str, Any]] = rs) -> str:
+            vals = [bool(r[key]) for r in rs if key in r]
+            return f"{sum(vals)}/{len(vals)}" if vals else "–"
+
+        errs = [r["parameter_error"] for r in rs if "parameter_error" in r and not math.isnan(r["parameter_error"])]
+        med = f"{100 * float(np.median(errs)):.1f} %" if errs else "–"
+        lines.append(
+            f"| {klass} | {len(rs)} | {frac('right_mechanism_and_place')} | {med} | "
+            f"{frac('within_bounds_and_90pct')} | {frac('false_finding')} | {frac('flagged_not_explained')} |"
+        )
+    return "\n".join(lines)
