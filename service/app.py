@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
+from typing import Any
 
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
@@ -46,13 +47,18 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     so creating the app is cheap and has no side effects.
     """
     from service import routers
-    from storage.db import open_database
+    from storage.db import create_db_engine, migrate, session_factory
 
     settings = settings or get_settings()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        engine, factory = open_database(settings.database_url, auto_migrate=settings.auto_migrate)
+        # More pooled connections than request threads (anyio's default limiter: 40), so a
+        # request never waits on a connection held by another one queued behind it.
+        engine = create_db_engine(settings.database_url, **_pool_options(settings.database_url))
+        if settings.auto_migrate:
+            migrate(engine)
+        factory = session_factory(engine)
         app.state.engine = engine
         app.state.session_factory = factory
         try:
@@ -80,6 +86,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
     return app
+
+
+def _pool_options(url: str) -> dict[str, Any]:
+    from sqlalchemy.engine import make_url
+
+    parsed = make_url(url)
+    if parsed.get_backend_name() == "sqlite" and parsed.database in (None, "", ":memory:"):
+        return {}  # one in-memory database per connection: no pool to size
+    return {"pool_size": 10, "max_overflow": 40}
 
 
 def _error_model() -> type:

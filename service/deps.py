@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Callable, Iterator
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -28,9 +28,12 @@ def get_settings(request: Request) -> Settings:
     return settings
 
 
-def get_db(request: Request) -> Iterator[Session]:
+async def get_db(request: Request) -> AsyncIterator[Session]:
     """One session per request. Handlers that write call ``commit()`` themselves; whatever
-    is left uncommitted (an error half-way) is rolled back here."""
+    is left uncommitted (an error half-way) is rolled back here.
+
+    Asynchronous on purpose: the clean-up then runs on the event loop, not in the request
+    thread pool, so a full pool can never keep connections from being returned."""
     session: Session = request.app.state.session_factory()
     try:
         yield session
@@ -77,6 +80,11 @@ def get_current_key(
     if key.last_used_at is None or now - key.last_used_at > LAST_USED_RESOLUTION:
         key.last_used_at = now
         db.commit()
+    else:
+        # End the transaction either way: its connection goes back to the pool while the
+        # request waits for a thread to run its handler, so threads can never all be waiting
+        # for connections held by requests that are waiting for threads.
+        db.rollback()
     return caller
 
 

@@ -79,10 +79,12 @@ def mci_baseline_band(session: Session, rig_pk: int, channel: str) -> schemas.Ba
     )
 
 
-def trend_version(session: Session, rig_pk: int) -> tuple[int, int, int]:
-    """A cheap fingerprint of a rig's per-tooth indicator rows: (highest row id, rows, current
-    rows). Rows are only ever added (a re-analysis adds new rows and marks the old ones as not
-    current), so the fingerprint changes whenever a trend of the rig can change. One indexed
+def trend_version(session: Session, rig_pk: int) -> tuple[int, int]:
+    """A cheap fingerprint of a rig's per-tooth indicator rows: (highest row id, row count).
+
+    Rows are only added (a re-analysis adds new rows and marks the old ones as not current in
+    the same transaction) or deleted with their record, so the fingerprint changes whenever a
+    trend of the rig can change. Both aggregates are answered from the trend index. One indexed
     aggregate; used to serve cached trend responses.
 
     Requested from the storage layer as ``TrendRepository.version(rig_id)``; kept here until
@@ -93,35 +95,52 @@ def trend_version(session: Session, rig_pk: int) -> tuple[int, int, int]:
     from storage.models import ToothIndicator
 
     ti = ToothIndicator
-    current = sa.func.sum(sa.case((ti.is_current.is_(True), 1), else_=0))
     row = session.execute(
-        sa.select(sa.func.max(ti.id), sa.func.count(ti.id), current).where(ti.rig_id == rig_pk)
+        sa.select(sa.func.max(ti.id), sa.func.count()).where(ti.rig_id == rig_pk)
     ).one()
-    return int(row[0] or 0), int(row[1] or 0), int(row[2] or 0)
+    return int(row[0] or 0), int(row[1] or 0)
 
 
 class ResponseCache:
-    """A small thread-safe LRU of serialized responses, each valid for one data version."""
+    """A small thread-safe LRU of serialized responses, each tagged with the data version it
+    was built from and when that version was last confirmed."""
 
     def __init__(self, max_entries: int = 256) -> None:
         import threading
         from collections import OrderedDict
 
-        self._entries: OrderedDict[object, tuple[object, bytes]] = OrderedDict()
+        self._entries: OrderedDict[object, tuple[object, bytes, float]] = OrderedDict()
         self._lock = threading.Lock()
         self.max_entries = max_entries
 
+    def fresh(self, key: object, max_age_s: float) -> tuple[object, bytes] | None:
+        """The entry if its version was confirmed less than ``max_age_s`` ago."""
+        import time
+
+        with self._lock:
+            entry = self._entries.get(key)
+            if entry is None or time.monotonic() - entry[2] >= max_age_s:
+                return None
+            self._entries.move_to_end(key)
+            return entry[0], entry[1]
+
     def get(self, key: object, version: object) -> bytes | None:
+        """The body built from ``version`` (and mark it confirmed now), else ``None``."""
+        import time
+
         with self._lock:
             entry = self._entries.get(key)
             if entry is None or entry[0] != version:
                 return None
+            self._entries[key] = (version, entry[1], time.monotonic())
             self._entries.move_to_end(key)
             return entry[1]
 
     def put(self, key: object, version: object, body: bytes) -> None:
+        import time
+
         with self._lock:
-            self._entries[key] = (version, body)
+            self._entries[key] = (version, body, time.monotonic())
             self._entries.move_to_end(key)
             while len(self._entries) > self.max_entries:
                 self._entries.popitem(last=False)

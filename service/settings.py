@@ -41,6 +41,12 @@ class Settings(BaseSettings):
     max_upload_bytes: int = Field(
         default=512 * 1024 * 1024, description="Largest record file accepted by an upload."
     )
+    trend_cache_seconds: float = Field(
+        default=1.0,
+        ge=0,
+        description="A cached trend answer is served without re-checking the database for "
+        "this long (0: check on every request).",
+    )
     upload_dir: Path | None = Field(
         default=None,
         description="Where uploads are spooled before the job keeps them (default: system temp).",

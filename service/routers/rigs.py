@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 
 from service import schemas
 from service.convert import rig_by_name, rig_out, rule_out
-from service.deps import CurrentKey, DbSession, OperatorKey
+from service.deps import CurrentKey, DbSession, OperatorKey, SettingsDep
 from service.routers.common import RigName, errors
 from storage.models import Rig
 
@@ -53,6 +53,7 @@ def trends(
     rig_id: RigName,
     request: Request,
     db: DbSession,
+    settings: SettingsDep,
     _caller: CurrentKey,
     indicator: Annotated[
         schemas.ToothIndicatorName, Query(description="Per-tooth indicator.")
@@ -68,18 +69,24 @@ def trends(
     from service.queries import ResponseCache, trend_version
 
     rig = rig_by_name(db, rig_id)
-    # Trends only change when indicator rows are added: serve the serialized answer again
-    # while the rig's fingerprint is unchanged (and 304 to a client that already has it).
-    version = trend_version(db, rig.id)
+    # Trends only change when indicator rows are added: the serialized answer is served again
+    # while the rig's data fingerprint is unchanged (re-checked at most every
+    # ``trend_cache_seconds``), and a client holding it gets 304.
+    cache: ResponseCache = request.app.state.trend_cache
+    cache_key = (rig.id, indicator, tooth, channel)
+    fresh = cache.fresh(cache_key, settings.trend_cache_seconds)
+    if fresh is not None:
+        version, body = fresh
+    else:
+        version = trend_version(db, rig.id)
+        cached = cache.get(cache_key, version)
+        if cached is None:
+            cached = _trend(db, rig, indicator, tooth, channel).model_dump_json().encode()
+            cache.put(cache_key, version, cached)
+        body = cached
     etag = _etag(rig.id, indicator, tooth, channel, version)
     if request.headers.get("if-none-match") == etag:
         return Response(status_code=304, headers={"ETag": etag})
-    cache: ResponseCache = request.app.state.trend_cache
-    cache_key = (rig.id, indicator, tooth, channel)
-    body = cache.get(cache_key, version)
-    if body is None:
-        body = _trend(db, rig, indicator, tooth, channel).model_dump_json().encode()
-        cache.put(cache_key, version, body)
     return Response(body, media_type="application/json", headers={"ETag": etag})
 
 

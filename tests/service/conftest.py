@@ -65,6 +65,7 @@ def service_app(
         database_url=db_url,
         raw_store=raw_store,
         auto_migrate=False,
+        trend_cache_seconds=0.0,
         upload_dir=tmp_path_factory.mktemp("uploads"),
     )
     app = create_app(settings)
