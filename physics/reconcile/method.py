@@ -632,16 +632,11 @@ def reconcile(
     dof_final = fitter.dof(evaluation, accepted)
     chi2_dof_final = chi2_now / dof_final
     tolerance = 3 * math.sqrt(2 / dof_final)
-    within = abs(chi2_dof_final - 1.0) <= tolerance
+    status = honesty_status(chi2_dof_final, dof_final, len(accepted))
+    within = status == "explained"
     excess_base = chi2_base - dof_base
     excess_explained = (chi2_base - chi2_now) / excess_base if excess_base > 0 else 1.0
     excess_explained = float(min(1.0, max(0.0, excess_explained)))
-    if within:
-        status = "explained"
-    elif final_findings:
-        status = "partly_explained"
-    else:
-        status = "not_explained"
     final_residual = target - evaluation.prediction
     remaining = (
         mismatches(
@@ -695,6 +690,20 @@ def reconcile(
         timings_s=timings,
         simulations=fitter.fm.simulations,
     )
+
+
+def honesty_status(chi2_dof: float, dof: int, n_findings: int) -> str:
+    """``explained`` only when χ²/dof is within ``1 ± 3√(2/dof)``; otherwise
+    ``partly_explained`` (something was found) or ``not_explained``.
+
+    Examples
+    --------
+    >>> honesty_status(1.01, 20000, 1), honesty_status(1.2, 20000, 1), honesty_status(1.2, 20000, 0)
+    ('explained', 'partly_explained', 'not_explained')
+    """
+    if abs(chi2_dof - 1.0) <= 3.0 * math.sqrt(2.0 / dof):
+        return "explained"
+    return "partly_explained" if n_findings else "not_explained"
 
 
 def _spectrum(
