@@ -12,7 +12,7 @@ from fastapi.staticfiles import StaticFiles
 
 from gearwatch.version import __version__
 from service.errors import install_error_handlers
-from service.metrics import RequestMetrics, metrics_middleware
+from service.metrics import MetricsMiddleware, RequestMetrics
 from service.queries import ResponseCache
 from service.settings import Settings, get_settings
 
@@ -81,7 +81,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.metrics = RequestMetrics()
     app.state.trend_cache = ResponseCache()
     install_error_handlers(app)
-    app.middleware("http")(metrics_middleware(app.state.metrics))
+    app.add_middleware(MetricsMiddleware, metrics=app.state.metrics)
     for router in routers.ALL:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
