@@ -27,6 +27,7 @@ from tests.storage.dbfixtures import (  # noqa: F401
 )
 
 ROLES = ("viewer", "operator", "admin")
+SPALL_TOOTH = 16
 
 
 @dataclass
@@ -90,3 +91,15 @@ def api(
         for role in ROLES:
             keys[role] = ApiKeyRepository(session).create(name=f"{role} key", role=role)[1]
     yield Api(app, client, keys, factory, raw_store, db_engine_migrated.dialect.name)
+
+
+@pytest.fixture(scope="session")
+def simulated_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 12-day simulated campaign (3 s records), spall on pinion tooth 16 from day 10."""
+    from gearwatch.cli import main
+
+    out = tmp_path_factory.mktemp("campaign") / "sim"
+    args = ["simulate-campaign", str(out), "--days", "12", "--seconds", "3", "--seed", "3"]
+    args += ["--spall-tooth", str(SPALL_TOOTH), "--onset-day", "10"]
+    assert main(args) == 0
+    return out

@@ -533,3 +533,50 @@ def test_trend_answers_are_cached_until_the_rig_gets_new_results(api: Api, seede
     trend = changed.json()
     assert len(trend["records"]) == len(seeded.record_ids) + 1
     assert trend["values"][-1] == [0.5] * 20
+
+
+def test_upload_a_real_record_then_reprocess_adds_a_result_version(
+    api: Api, simulated_campaign: Path
+) -> None:
+    """Through the real chain: a simulated day is uploaded and analysed; re-processing with
+    other parameters adds a version and keeps the old one; the same parameters change nothing."""
+    import tomllib
+
+    manifest = tomllib.loads((simulated_campaign / "campaign.toml").read_text())
+    entry = manifest.pop("records")[0]
+    operator = api.headers("operator")
+    created = api.client.post("/api/v1/campaigns", json=manifest, headers=operator)
+    assert created.status_code == 201, created.text
+    campaign = created.json()["campaign_id"]
+    record_file = simulated_campaign / entry["file"]
+    form = {"entry": f'{{"taken_at": "{entry["taken_at"]}", "label": "{entry["label"]}"}}'}
+    with open(record_file, "rb") as stream:
+        files = {"file": (record_file.name, stream.read())}
+    uploaded = api.client.post(
+        f"/api/v1/campaigns/{campaign}/records", files=files, data=form, headers=operator
+    )
+    assert uploaded.status_code == 201, uploaded.text
+    job = uploaded.json()
+    assert job["outcome"] == "accepted", job["record"]["reason"]
+    record_id = job["record"]["id"]
+    detail = api.get(f"/api/v1/records/{record_id}").json()
+    assert detail["revolutions"] >= 20 and len(detail["current_result"]["channels"][0]["teeth"]) > 0
+    first_result = detail["current_result"]["id"]
+
+    url = f"/api/v1/records/{record_id}/reprocess"
+    body = {"parameters": {"samples_per_mesh": 32}}
+    again = api.client.post(url, json=body, headers=operator)
+    assert again.status_code == 200, again.text
+    assert again.json()["outcome"] == "reprocessed" and again.json()["result_id"] != first_result
+    results = api.get(f"/api/v1/records/{record_id}/results").json()["items"]
+    assert [r["is_current"] for r in results] == [False, True]
+    assert results[1]["parameters"]["samples_per_mesh"] == 32
+    assert results[1]["samples_per_rev"] * 2 == results[0]["samples_per_rev"]
+    curves = api.get(f"/api/v1/records/{record_id}/curves?names=mci").json()
+    assert curves["result_id"] == results[1]["id"]
+    assert len(curves["curves"]["mci"]) == results[1]["samples_per_rev"]
+    old = api.get(f"/api/v1/records/{record_id}/curves?names=mci&result_id={first_result}").json()
+    assert len(old["curves"]["mci"]) == results[0]["samples_per_rev"]
+    same = api.client.post(url, json=body, headers=operator)
+    assert same.json()["outcome"] == "unchanged"
+    assert len(api.get(f"/api/v1/records/{record_id}/results").json()["items"]) == 2

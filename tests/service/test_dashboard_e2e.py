@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import service_unavailable
-from tests.service.conftest import Api
+from tests.service.conftest import SPALL_TOOTH, Api
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -26,19 +26,7 @@ CHROMIUM_ARGS = [
     "--disable-component-update",
     "--disable-sync",
 ]
-SPALL_TOOTH = 16
 ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
-
-
-@pytest.fixture(scope="session")
-def simulated_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from gearwatch.cli import main
-
-    out = tmp_path_factory.mktemp("campaign") / "sim"
-    args = ["simulate-campaign", str(out), "--days", "12", "--seconds", "3", "--seed", "3"]
-    args += ["--spall-tooth", str(SPALL_TOOTH), "--onset-day", "10"]
-    assert main(args) == 0
-    return out
 
 
 def _free_port() -> int:
