@@ -7,7 +7,7 @@ const KEY_STORAGE = "gearwatch.apiKey";
 const el = (id) => document.getElementById(id);
 const state = {
   key: null, me: null, rig: null, indicator: "mci_depth",
-  trend: null, alarms: [], record: null, tooth: null,
+  trend: null, alarms: [], rules: [], record: null, tooth: null,
   curvePlot: null, trendPlot: null,
 };
 
@@ -165,7 +165,26 @@ async function selectRecord(recordId) {
   el("curve").dataset.sectors = String(new Set(sectors.map((s) => s.tooth)).size);
 }
 
-/* ---------- one tooth's trend ---------- */
+/* ---------- one tooth's trend, with its baseline and alarm levels ---------- */
+function median(values) {
+  const sorted = values.filter(Number.isFinite).sort((a, b) => a - b);
+  return quantile(sorted, 0.5);
+}
+
+function toothBaseline(tooth, column) {
+  // The stored alarm's baseline when there is one; else the rule's recipe on the first records.
+  const rule = (state.rules || []).find((r) => r.indicator === state.indicator);
+  const alarm = state.alarms.find((a) => a.indicator === state.indicator && a.tooth === tooth);
+  if (alarm) return { centre: alarm.baseline_centre, spread: alarm.baseline_spread, rule };
+  if (!rule) return null;
+  const first = column.slice(0, rule.baseline_records).filter(Number.isFinite);
+  if (first.length < rule.baseline_records) return null;
+  const centre = median(first);
+  const mad = median(first.map((v) => Math.abs(v - centre)));
+  const spread = Math.max(1.4826 * mad, rule.spread_floor_fraction * Math.abs(centre), rule.spread_floor_abs);
+  return { centre, spread, rule };
+}
+
 function selectTooth(tooth) {
   state.tooth = tooth;
   el("trend-title").textContent = `${tooth} (${state.indicator})`;
@@ -175,14 +194,28 @@ function selectTooth(tooth) {
   if (t < 0) return;
   const xs = trend.records.map((r) => Date.parse(r.taken_at) / 1000);
   const ys = trend.values.map((row) => row[t]);
+  const series = [{}, { label: `tooth ${tooth}`, stroke: "#b00020", width: 1.5, points: { show: true, size: 5 } }];
+  const columns = [xs, ys];
+  const base = toothBaseline(tooth, ys);
+  if (base) {
+    const flat = (v) => xs.map(() => v);
+    series.push({ label: "baseline", stroke: "#607080", dash: [4, 4], points: { show: false } });
+    columns.push(flat(base.centre));
+    if (base.rule) {
+      series.push({ label: "warning", stroke: "#e69500", dash: [6, 3], points: { show: false } });
+      columns.push(flat(base.centre + base.rule.warning_level * base.spread));
+      series.push({ label: "alarm", stroke: "#b00020", dash: [2, 2], points: { show: false } });
+      columns.push(flat(base.centre + base.rule.alarm_level * base.spread));
+    }
+  }
   const opts = {
-    width: Math.min(860, el("trend").clientWidth || 860), height: 240,
-    series: [{}, { label: `tooth ${tooth}`, stroke: "#b00020", width: 1.5, points: { show: true, size: 5 } }],
+    width: Math.min(860, el("trend").clientWidth || 860), height: 240, series,
     axes: [{}, { label: state.indicator }],
   };
   if (state.trendPlot) state.trendPlot.destroy();
   el("trend").innerHTML = "";
-  state.trendPlot = new uPlot(opts, [xs, ys], el("trend"));
+  state.trendPlot = new uPlot(opts, columns, el("trend"));
+  el("trend").dataset.levels = base && base.rule ? "true" : "false";
 }
 
 /* ---------- alarm list with acknowledgement ---------- */
@@ -230,6 +263,7 @@ async function loadAlarms() {
 async function loadRig() {
   message("");
   try {
+    state.rules = (await api(`/rigs/${encodeURIComponent(state.rig)}/alarm-rules`)).items;
     state.trend = await api(`/rigs/${encodeURIComponent(state.rig)}/trends?indicator=${state.indicator}`);
     await loadAlarms();
   } catch (error) { message(error.message); return; }

@@ -102,6 +102,7 @@ def test_dashboard_shows_the_alarmed_tooth_after_a_replayed_campaign(
             assert page.get_attribute("#curve", "data-sectors") == "20"
             assert page.locator("#trend .uplot").count() == 1
             assert page.inner_text("#trend-title").startswith(f"{SPALL_TOOTH} ")
+            assert page.get_attribute("#trend", "data-levels") == "true"  # baseline + levels
             page.screenshot(path=str(ARTIFACTS / f"dashboard-{api.backend}.png"), full_page=True)
 
             # an operator acknowledges it from the list
