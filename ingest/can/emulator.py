@@ -7,8 +7,12 @@ which the rig has its data: a ``SampleBlock`` when its 30th sample is acquired, 
 bus at real speed (``speed=1``), accelerated (``speed=10``) or as fast as possible
 (``speed=0``) with flow control: a full transmit queue is waited out, never dropped.
 
-Waveforms are quantised to int16 per channel (:func:`ingest.can.protocol.quantise`:
-error at most half a count, ``(max - min) / 131064``); pulse times travel in 1 ns ticks.
+Waveforms travel as int16 counts per channel. Samples that already are whole counts of a
+power-of-two count size (what a DAQ gives: PCM WAV reads as ``count / 32768``) or of a count
+size given in ``count_scales`` are sent as those counts, bit-exactly
+(:func:`ingest.can.protocol.exact_counts`); any other waveform is quantised over its range
+(:func:`ingest.can.protocol.quantise`: error at most half a count, ``(max - min) / 131064``).
+Pulse times travel in 1 ns ticks.
 """
 
 from __future__ import annotations
@@ -109,6 +113,7 @@ def record_frames(
     units: Mapping[str, str] | None = None,
     start_time: dt.datetime | None = None,
     aborted: bool = False,
+    count_scales: Mapping[str, float] | None = None,
 ) -> list[tuple[float, can.Message]]:
     """The frames a rig sends for ``record``, each with its send time in seconds.
 
@@ -132,6 +137,11 @@ def record_frames(
         Time of the first sample; default the record's ``taken_at`` metadata, else now.
     aborted : bool
         Send ``RecordStop`` with reason "aborted" (the receiver rejects the record).
+    count_scales : mapping, optional
+        Count size (physical units per count) per waveform channel name, e.g. the ADC's LSB:
+        the channel's samples must be whole multiples of it within int16 and are sent
+        bit-exactly (``ValueError`` otherwise). Channels not named here are sent exactly when
+        they are whole counts of a power of two, else quantised over their range.
 
     Returns
     -------
@@ -201,7 +211,7 @@ def record_frames(
             if values.size:
                 end_s = max(end_s, float(values[-1]))
         else:
-            counts, scale, offset = p.quantise(values)
+            counts, scale, offset = _waveform_counts(name, values, (count_scales or {}).get(name))
             frames = p.encode_sample_blocks(counts, channel_id)
             sample_end = np.minimum(
                 (np.arange(len(frames)) + 1) * p.SAMPLES_PER_BLOCK, values.size
@@ -235,6 +245,22 @@ def record_frames(
         (t, p.fd_message(ids[i], payloads[i], timestamp=t))
         for t, i in zip(send_times, order.tolist(), strict=True)
     ]
+
+
+def _waveform_counts(
+    name: str, values: np.ndarray, count_scale: float | None
+) -> tuple[np.ndarray, float, float]:
+    """Counts, scale and offset of one waveform: exact counts when there are, else quantised."""
+    exact = p.exact_counts(values, count_scale)
+    if exact is not None:
+        counts, scale = exact
+        return counts, scale, 0.0
+    if count_scale is not None:
+        raise ValueError(
+            f"samples of {name!r} are not whole multiples of the count size {count_scale!r} "
+            f"within int16 (|count| <= {p.MAX_COUNT})"
+        )
+    return p.quantise(values)
 
 
 def send_with_flow_control(
@@ -272,6 +298,7 @@ def emulate(
     tach_shaft: str = "pinion",
     units: Mapping[str, str] | None = None,
     start_time: dt.datetime | None = None,
+    count_scales: Mapping[str, float] | None = None,
 ) -> EmulationStats:
     """Play records onto ``bus`` like a rig.
 
@@ -287,6 +314,8 @@ def emulate(
         Cap on the frame rate (flow control for receivers that drop when flooded, such as
         UDP multicast sockets).
     channel_kinds, tach_channel, tach_kind, pulses_per_rev, tach_shaft, units, start_time
+        Passed to :func:`record_frames` for every record.
+    count_scales
         Passed to :func:`record_frames` for every record.
     """
     if speed < 0:
@@ -306,6 +335,7 @@ def emulate(
             tach_shaft=tach_shaft,
             units=units,
             start_time=start_time,
+            count_scales=count_scales,
         )
         t0 = time.perf_counter()
         if speed == 0 and not max_frames_per_s:

@@ -381,6 +381,59 @@ def quantise(values: np.ndarray) -> tuple[np.ndarray, float, float]:
     return counts, scale, offset
 
 
+def exact_counts(values: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, float] | None:
+    """int16 counts with ``values == scale * counts`` exactly, or ``None`` when there are none.
+
+    A DAQ delivers integer counts times a fixed count size: PCM WAV reads as
+    ``count / 32768``, an ADC as ``count * LSB``. Such samples cross the bus bit-exactly
+    when their counts are sent with that count size and offset 0, instead of being
+    re-quantised over the channel's range (:func:`quantise`). Without ``scale``, the
+    count size tried is the smallest power of two that keeps the largest finite sample
+    within the finite counts ``-MAX_COUNT..MAX_COUNT``: power-of-two multiples of any
+    coarser power-of-two count size are whole multiples of it too, and a finer one would
+    need counts beyond int16. ``scale * count`` is then exact in float64 (a 16-bit integer
+    times a power of two), so :func:`dequantise` gives the samples back bit for bit; with a
+    given ``scale`` that is checked sample by sample. NaN and infinities travel as the
+    reserved counts, as in :func:`quantise`.
+
+    Examples
+    --------
+    >>> pcm = np.array([-32766, -1, 0, 3, 32766], dtype=np.int16)
+    >>> samples = pcm.astype(np.float32) / np.float32(32768)  # what the WAV reader returns
+    >>> counts, scale = exact_counts(samples)
+    >>> counts.tolist(), scale == 2.0**-15
+    ([-32766, -1, 0, 3, 32766], True)
+    >>> bool((dequantise(counts, scale, 0.0) == samples).all())
+    True
+    >>> exact_counts(np.array([0.1, 0.2])) is None  # not whole multiples of a power of two
+    True
+    """
+    values = np.asarray(values, dtype=np.float64)
+    finite = np.isfinite(values)
+    finite_values = values[finite]
+    largest = float(np.abs(finite_values).max()) if finite_values.size else 0.0
+    if scale is None:
+        if largest == 0.0:
+            scale = 1.0
+        else:
+            # frexp gives largest / MAX_COUNT = mantissa * 2**exponent, mantissa in [0.5, 1):
+            # 2**exponent is the smallest power of two with largest / 2**exponent <= MAX_COUNT.
+            mantissa, exponent = np.frexp(largest / MAX_COUNT)
+            scale = float(np.ldexp(1.0, int(exponent) - 1 if mantissa == 0.5 else int(exponent)))
+            if largest / scale > MAX_COUNT:  # the division above rounded down
+                scale *= 2.0
+    if not (np.isfinite(scale) and scale > 0) or largest / scale > MAX_COUNT:
+        return None
+    whole = np.rint(finite_values / scale)
+    if not np.array_equal(whole * scale, finite_values):
+        return None
+    counts = np.full(values.shape, NO_VALUE_COUNT, dtype=np.int16)
+    counts[values == np.inf] = POS_INF_COUNT
+    counts[values == -np.inf] = NEG_INF_COUNT
+    counts[finite] = whole.astype(np.int16)
+    return counts, scale
+
+
 def dequantise(counts: np.ndarray, scale: float, offset: float) -> np.ndarray:
     """float64 physical values of int16 counts; the reserved counts become NaN, -inf, +inf."""
     values = counts.astype(np.float64)
