@@ -6,7 +6,8 @@ Every error body has the same shape (:class:`service.schemas.ErrorBody`)::
 
 ``gearwatch.errors.GearwatchError`` subclasses carry their own ``http_status`` and
 ``code``; request validation errors become 422 ``invalid_request``; Starlette's own
-HTTP errors (unknown path, wrong method) keep their status. Anything else is a bug:
+HTTP errors (unknown path, wrong method) keep their status; database refusals are 422/409
+(503 when the database is down). Anything else is a bug:
 500 ``internal_error`` with no internals in the body, logged with its traceback.
 """
 
@@ -19,6 +20,7 @@ from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from sqlalchemy.exc import SQLAlchemyError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from gearwatch.errors import GearwatchError, Unauthorized
@@ -74,6 +76,26 @@ def _http_error(_request: Request, error: Exception) -> JSONResponse:
     )
 
 
+def _database_error(_request: Request, error: Exception) -> JSONResponse:
+    """Safety net: values the database refuses are the caller's (422), a unique or foreign key
+    violation that validation did not foresee is a conflict (409); an unreachable database 503.
+    """
+    import sqlalchemy.exc as sa_exc
+
+    if isinstance(error, sa_exc.DataError):
+        logger.warning("database refused a value: %s", error)
+        return error_response(
+            422, "invalid_input", "a value cannot be stored (invalid text or number)"
+        )
+    if isinstance(error, sa_exc.IntegrityError):
+        logger.warning("integrity error: %s", error)
+        return error_response(409, "conflict", "conflicts with stored data")
+    if isinstance(error, sa_exc.OperationalError | sa_exc.TimeoutError):
+        logger.error("database unavailable: %s", error)
+        return error_response(503, "database_unavailable", "the database is not available")
+    return _unexpected_error(_request, error)
+
+
 def _unexpected_error(_request: Request, error: Exception) -> JSONResponse:
     logger.error("unhandled error: %s", error, exc_info=error)
     return error_response(500, "internal_error", "internal error")
@@ -84,4 +106,5 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(GearwatchError, _gearwatch_error)
     app.add_exception_handler(RequestValidationError, _validation_error)
     app.add_exception_handler(StarletteHTTPException, _http_error)
+    app.add_exception_handler(SQLAlchemyError, _database_error)
     app.add_exception_handler(Exception, _unexpected_error)

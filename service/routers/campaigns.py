@@ -83,6 +83,7 @@ def create_campaign(
     )
 
     data = {k: v for k, v in manifest.items() if k != "records"}
+    _refuse_control_characters(data, "manifest")
     try:
         config = parse_manifest(data, root=Path("."), source="uploaded manifest", check_files=False)
     except InputError:
@@ -106,3 +107,19 @@ def create_campaign(
     if not is_new:
         response.status_code = 200
     return campaign_out(db, campaign, Names(db))
+
+
+def _refuse_control_characters(value: Any, where: str) -> None:
+    """Names and units are printable text (PostgreSQL refuses NUL; none belongs in a name)."""
+    from gearwatch.errors import ManifestError
+
+    if isinstance(value, str):
+        if any(ord(c) < 0x20 or ord(c) == 0x7F for c in value):
+            raise ManifestError(f"{where}: control characters are not allowed")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            _refuse_control_characters(key, where)
+            _refuse_control_characters(item, f"{where}.{key}")
+    elif isinstance(value, list):
+        for index, item in enumerate(value):
+            _refuse_control_characters(item, f"{where}[{index}]")

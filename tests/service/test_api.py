@@ -580,3 +580,11 @@ def test_upload_a_real_record_then_reprocess_adds_a_result_version(
     same = api.client.post(url, json=body, headers=operator)
     assert same.json()["outcome"] == "unchanged"
     assert len(api.get(f"/api/v1/records/{record_id}/results").json()["items"]) == 2
+
+
+def test_text_the_database_cannot_store_is_a_4xx(api: Api) -> None:
+    """PostgreSQL refuses NUL in text: a manifest carrying one is refused, never a 500."""
+    manifest = {**MANIFEST, "campaign": {"id": "nul\u0000campaign", "description": "x"}}
+    response = api.client.post("/api/v1/campaigns", json=manifest, headers=api.headers("operator"))
+    assert 400 <= response.status_code < 500, response.text
+    error_of(response, response.status_code)
