@@ -72,6 +72,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description=DESCRIPTION,
         openapi_tags=OPENAPI_TAGS,
         lifespan=lifespan,
+        openapi_url="/openapi.json" if settings.api_docs else None,
         responses={
             401: {"description": "Missing or unknown API key", "model": _error_model()},
             422: {"description": "Invalid request", "model": _error_model()},

@@ -47,6 +47,11 @@ class Settings(BaseSettings):
         description="A cached trend answer is served without re-checking the database for "
         "this long (0: check on every request).",
     )
+    api_docs: bool = Field(
+        default=True,
+        description="Serve the OpenAPI document and its pages (/openapi.json, /docs, /redoc) "
+        "without a key; they hold no data. False removes them.",
+    )
     upload_dir: Path | None = Field(
         default=None,
         description="Where uploads are spooled before the job keeps them (default: system temp).",

@@ -588,3 +588,20 @@ def test_text_the_database_cannot_store_is_a_4xx(api: Api) -> None:
     response = api.client.post("/api/v1/campaigns", json=manifest, headers=api.headers("operator"))
     assert 400 <= response.status_code < 500, response.text
     error_of(response, response.status_code)
+
+
+def test_only_data_free_pages_are_served_without_a_key(api: Api) -> None:
+    """Besides /health: the dashboard shell, its static files and the API description."""
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+
+    page = api.client.get("/")
+    assert page.status_code == 200 and "uPlot.iife.min.js" in page.text
+    assert api.client.get("/static/vendor/uPlot.iife.min.js").status_code == 200
+    assert api.client.get("/static/vendor/uPlot.LICENSE").status_code == 200
+    assert api.client.get("/openapi.json").status_code == 200
+    settings = api.app.state.settings.model_copy(update={"api_docs": False})
+    with TestClient(create_app(settings)) as locked:
+        for path in ("/openapi.json", "/docs", "/redoc"):
+            assert locked.get(path).status_code == 404
