@@ -39,12 +39,15 @@ def test_compose_services_volumes_and_replicas() -> None:
     assert services["api"]["ports"] == ["8000:8000"]
     assert services["api"]["command"][:2] == ["gearwatch", "serve"]
     assert "0.0.0.0" in services["api"]["command"]
-    for name in ("postgres", "rabbitmq"):
+    for name in ("postgres", "rabbitmq", "api"):
         assert services[name]["healthcheck"]["test"]
     worker = services["worker"]["command"]
     assert worker[:2] == ["dramatiq", "gearwatch.worker"]
     assert importlib.util.find_spec(worker[1]) is not None  # the actor module exists
     assert services["worker"]["environment"]["GEARWATCH_JOB_RUNNER"] == "broker"
+    # one migration at a time: the api migrates at start-up, the workers wait until it is healthy
+    assert services["worker"]["depends_on"]["api"]["condition"] == "service_healthy"
+    assert "/health" in " ".join(services["api"]["healthcheck"]["test"])
 
 
 def test_compose_references_are_defined() -> None:
