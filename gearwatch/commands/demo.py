@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     key = _create_key(database_url)
     url = f"http://{args.host}:{args.port}/"
     print("\n== dashboard and API")
-    print(f"dashboard: {url}")
+    print(f"dashboard: {url}#key={key}")
     print(f"API docs:  {url}docs")
     print(f"API key (operator; paste it into the dashboard): {key}")
     print(f'try:       curl -H "Authorization: Bearer {key}" '
