@@ -484,7 +484,8 @@ def _score_all(
                 continue
             fitted = d_perp @ coef
             delta = float(fitted @ fitted)
-            n_new = cols.shape[0] + (1 if mechanism.transfer_only else 0)
+            # A new mode: its gain (the column) plus its frequency and damping.
+            n_new = cols.shape[0] + (2 if mechanism.transfer_only else 0)
             eff = delta / chi2_scale
             bic = -eff + n_new * math.log(n) + 2.0 * math.log(n_scan)
             p = min(1.0, n_scan * float(stats.chi2.sf(eff, n_new)))
@@ -597,14 +598,20 @@ def reconcile(
         theta_try[: len(fitter.nuisance)] = [x[1] for x in fitter.nuisance]
         theta_new, jac_new, eval_new = fitter.fit(trial, theta_try)
         chi2_new = fitter.chi2(eval_new)
-        if chi2_new >= chi2_now:
+        # The evidence is re-scored on the non-linear refit: a linearised gain the refit does
+        # not keep is not accepted.
+        n_new = len(best.mechanism.steps) + (1 if best.mechanism.transfer_only else 0)
+        gain_eff = (chi2_now - chi2_new) / scale
+        refit_bic = -gain_eff + n_new * math.log(fitter.n_rows) + 2.0 * math.log(best.n_scan)
+        if refit_bic >= options.accept_delta_bic:
             break
         dof_new = fitter.dof(eval_new, trial)
         evidence = {
-            "delta_bic": best.delta_bic,
-            "p_value": best.p_value,
+            "delta_bic": refit_bic,
+            "p_value": min(1.0, best.n_scan * float(stats.chi2.sf(gain_eff, n_new))),
             "delta_chi2": chi2_now - chi2_new,
             "scanned": float(best.n_scan),
+            "delta_bic_scan": best.delta_bic,
         }
         new.evidence = evidence
         for other in scores[1:]:

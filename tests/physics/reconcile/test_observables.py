@@ -91,14 +91,14 @@ def test_localisation_names_the_class_the_band_and_the_tooth() -> None:
     orders = order_mismatches(chi2, used, 20, 21)
     assert orders[0]["class"] == "pinion_sideband" and orders[0]["orders"] == [5.0, 7.0]
     assert orders[0]["share"] == pytest.approx(1.0)
-    f = np.arange(n) * 10.0
+    f = np.arange(n, dtype=np.float64) * 10.0
     band = frequency_mismatch(chi2, used, f, band_hz=250.0)
     assert band is not None and band["band_hz"][0] <= 1050 < band["band_hz"][1]
     # A pulse at pinion tooth 7's pitch angle in every revolution of the hunting period.
     spr = 20 * 16
     rev = np.zeros(spr)
     tooth1 = 10.0
-    rev[int(round((tooth1 + 6 * 18.0) / 360 * spr))] = 1.0
+    rev[round((tooth1 + 6 * 18.0) / 360 * spr)] = 1.0
     located = tooth_mismatch(np.tile(rev, 21), 20, 21, spr, tooth1)
     pinion = next(m for m in located if m["wheel"] == "pinion")
     assert pinion["teeth"] == [7]
