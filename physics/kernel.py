@@ -32,7 +32,8 @@ P_ECC1, P_PHI1, P_ECC2, P_PHI2 = range(14, 18)
 P_KB1, P_CB1, P_KB2, P_CB2 = range(18, 22)
 P_TORQUE_FF, P_LOAD, P_LOAD_FLUCT, P_LOAD_ORDER, P_LOAD_PHASE = range(22, 27)
 P_SPEED, P_DRIFT, P_FLUCT, P_FLUCT_HZ, P_CONTROL_GAIN, P_TACH_PPR = range(27, 33)
-N_PARAMS = 33
+P_TACH_OFFSET = 33
+N_PARAMS = 34
 
 # Rows of the per-output-sample array.
 OUT_PINION_ANGLE, OUT_GEAR_ANGLE, OUT_TE, OUT_MESH_FORCE = range(4)
@@ -370,7 +371,7 @@ def integrate(
     aa_state = np.zeros((n_sensors, n_sections, 2))
     force_ref = np.zeros(2)
     n_edges = 0
-    tach_phase_prev = x[i_tach] * p[P_TACH_PPR] / two_pi
+    tach_phase_prev = (x[i_tach] - p[P_TACH_OFFSET]) * p[P_TACH_PPR] / two_pi
     next_level = math.floor(tach_phase_prev) + 1.0
     p0_used = 0.0
     p1_used = 0.0
@@ -531,7 +532,7 @@ def integrate(
                 sensor_out[s_i, sample] = total
 
         # Tachometer: reference crossings of the tach shaft, interpolated within the step.
-        tach_phase = x[i_tach] * p[P_TACH_PPR] / two_pi
+        tach_phase = (x[i_tach] - p[P_TACH_OFFSET]) * p[P_TACH_PPR] / two_pi
         if tach_phase >= next_level:
             level = math.floor(tach_phase)
             if n_edges < edges.shape[0]:

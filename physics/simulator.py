@@ -33,6 +33,10 @@ from physics.config import GearPairModel, StructuralMode, validate_model
 from physics.geometry import SpurGeometry, spur_geometry
 
 
+class SimulationError(ValueError):
+    """The simulation left the model's domain (e.g. the drive could not hold the speed)."""
+
+
 def model_geometry(model: GearPairModel) -> SpurGeometry:
     g = model.geometry
     return spur_geometry(
@@ -106,6 +110,11 @@ class SimulationResult:
     tach_pulse_times_s: np.ndarray
     """Exact rising-edge times of the tachometer (reference mark crossings)."""
     tooth1_pitch_angle_deg: float
+    """Pinion angle after the record's first tach edge at which tooth 1 is on the pitch point.
+
+    The record starts so that its first tach edge is the pinion's reference (for a gear-shaft
+    tach, the gear's mark is placed so that one of its edges falls there too); this is the
+    model's ``tooth1_pitch_angle_deg`` to within the warm-up's speed error (≪ 0.1°)."""
     pinion_angle_rad: np.ndarray
     gear_angle_rad: np.ndarray
     transmission_error_m: np.ndarray
@@ -234,6 +243,35 @@ def _mode_filter(mode: StructuralMode, fs_hz: float) -> tuple[np.ndarray, np.nda
     return np.asarray(bz, dtype=float).ravel(), np.asarray(az, dtype=float)
 
 
+MAX_WARMUP_STRETCH_S = 1.0
+"""Longest extension of the warm-up used to start a record on the tach reference."""
+
+
+def _record_start(model: GearPairModel, speed_rad_s: float) -> tuple[int, float]:
+    """Warm-up steps and tach-mark offset so the record's first tach edge is the reference.
+
+    The pipeline counts revolutions from the first tach edge of a record and measures the
+    pinion angle from it. The warm-up is stretched (by less than a revolution) so that the
+    record starts just before the pinion passes its mark (angle 2πm); a gear-shaft mark is
+    placed where the gear is at that instant. Returns (warm-up steps, mark offset in rad of
+    the tach shaft).
+    """
+    acq, tach, geo = model.acquisition, model.tachometer, model.geometry
+    tach_per_pinion = 1.0 if tach.shaft == "pinion" else geo.pinion_teeth / geo.gear_teeth
+    # Pinion angle between tach edges; start a small fraction of it before the reference edge.
+    edge_spacing = 2 * math.pi / (tach.pulses_per_rev * tach_per_pinion)
+    margin = 0.1 * min(edge_spacing, 2 * math.pi)
+    m = math.ceil((speed_rad_s * acq.warmup_s + margin) / (2 * math.pi))
+    start_angle = 2 * math.pi * m - margin
+    if start_angle / speed_rad_s > acq.warmup_s + MAX_WARMUP_STRETCH_S:
+        # Very slow shaft: keep the requested warm-up; the record's tooth-1 angle is then
+        # reported as measured (SimulationResult.tooth1_pitch_angle_deg).
+        return max(1, round(acq.warmup_s * acq.sample_rate_hz)) * acq.oversampling, 0.0
+    warm_samples = max(1, math.floor(start_angle / speed_rad_s * acq.sample_rate_hz))
+    offset = math.fmod(2 * math.pi * m * tach_per_pinion, 2 * math.pi / tach.pulses_per_rev)
+    return warm_samples * acq.oversampling, offset
+
+
 def _anti_alias_sos(order: int, cutoff_hz: float, fs_hz: float) -> np.ndarray:
     """Analog Butterworth low-pass discretised exactly for a force linear between samples.
 
@@ -319,9 +357,9 @@ def simulate(
     fs_out = acq.sample_rate_hz
     fs_int = fs_out * acq.oversampling
     h = 1.0 / fs_int
-    n_warm = max(1, round(acq.warmup_s * fs_out)) * acq.oversampling
-    n_rec = round(seconds * fs_out)
     speed = op.speed_rpm * 2 * math.pi / 60
+    n_warm, tach_offset = _record_start(model, speed)
+    n_rec = round(seconds * fs_out)
     asm = _assemble(model, geo, speed, keep_unexcited_dofs)
     a_matrix = np.diag(asm.mass) * (4.0 / h**2) + asm.damping * (2.0 / h) + asm.stiffness
     a_inv = np.linalg.inv(a_matrix)
@@ -378,6 +416,7 @@ def simulate(
     p[kernel.P_CONTROL_GAIN] = asm.control_gain
     p[kernel.P_TORQUE_FF] = op.load_torque_nm * rb1 / rb2
     p[kernel.P_TACH_PPR] = float(model.tachometer.pulses_per_rev)
+    p[kernel.P_TACH_OFFSET] = tach_offset
 
     sensors = model.sensors
     n_modes = max(1, max(len(s.modes) for s in sensors))
@@ -412,6 +451,19 @@ def simulate(
         sensor_out, edges,
     )  # fmt: skip
 
+    pinion_angle = out[kernel.OUT_PINION_ANGLE]
+    # Vibration may make the angle wobble; turning back by a tooth pitch is a reversal.
+    setback = np.maximum.accumulate(pinion_angle) - pinion_angle
+    pitch_rad = 2 * math.pi / geo.pinion_teeth
+    expected_travel = speed * (n_rec - 1) / fs_out
+    travel = pinion_angle[-1] - pinion_angle[0]
+    stalled = expected_travel > pitch_rad and travel < 0.2 * expected_travel
+    if stalled or setback.max() > pitch_rad:
+        raise SimulationError(
+            "the pinion stopped or turned backwards: the speed loop cannot hold the speed "
+            "against this load (raise operating.speed_rpm, lower the load fluctuation or "
+            "shorten drive.speed_control_time_constant_s); the model has driving flanks only"
+        )
     rng = np.random.default_rng(seed)
     channels: dict[str, np.ndarray] = {}
     for s_i, sensor in enumerate(sensors):
@@ -423,11 +475,17 @@ def simulate(
         edges, record_times, tach.high_v, tach.duty_fraction, rise_s=1.5 / fs_out
     )
     edges = edges[(edges >= 0) & (edges <= record_times[-1])]
+    # Pinion angle at the record's first (reference) edge: 0 by construction, up to the
+    # speed's departure from nominal during the warm-up; the exact value corrects tooth 1.
+    tooth1 = model.tachometer.tooth1_pitch_angle_deg
+    if edges.size:
+        angle_at_edge = float(np.interp(edges[0], record_times, out[kernel.OUT_PINION_ANGLE]))
+        tooth1 -= math.degrees(math.remainder(angle_at_edge, 2 * math.pi))
     return SimulationResult(
         sample_rate_hz=fs_out,
         channels=channels,
         tach_pulse_times_s=edges,
-        tooth1_pitch_angle_deg=model.tachometer.tooth1_pitch_angle_deg % 360.0,
+        tooth1_pitch_angle_deg=tooth1 % 360.0,
         pinion_angle_rad=out[kernel.OUT_PINION_ANGLE],
         gear_angle_rad=out[kernel.OUT_GEAR_ANGLE],
         transmission_error_m=out[kernel.OUT_TE],

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from gearwatch.errors import InputError
     from physics.config import model_to_toml
     from physics.recordio import RecordWriteError, record_format, write_record
-    from physics.simulator import simulate
+    from physics.simulator import SimulationError, simulate
 
     model = load_model(args.model)
     if args.print_model:
@@ -67,7 +67,10 @@ def run(args: argparse.Namespace) -> int:
         record_format(args.out_file)
     except RecordWriteError as error:
         raise InputError(str(error)) from None
-    result = simulate(model, seconds=args.seconds, seed=args.seed)
+    try:
+        result = simulate(model, seconds=args.seconds, seed=args.seed)
+    except SimulationError as error:
+        raise InputError(f"{args.model or 'default model'}: {error}") from None
     path = write_record(args.out_file, result.channels, result.sample_rate_hz)
     names = ", ".join(result.channels)
     print(

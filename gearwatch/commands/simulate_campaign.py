@@ -49,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
     from gearwatch.commands.simulate import load_model
     from gearwatch.errors import InputError
     from physics.campaign import write_campaign
+    from physics.simulator import SimulationError
 
     out = Path(args.out_dir)
     if out.exists() and not out.is_dir():
@@ -73,18 +74,21 @@ def run(args: argparse.Namespace) -> int:
     def progress(day: int, days: int) -> None:
         print(f"day {day}/{days}", file=sys.stderr)
 
-    path = write_campaign(
-        out,
-        days=args.days,
-        spall_tooth=None if args.no_spall else args.spall_tooth,
-        onset_day=args.onset_day,
-        seed=args.seed,
-        record_format=args.format,
-        seconds=args.seconds,
-        campaign_id=args.campaign_id,
-        start=args.start,
-        base_model=model,
-        progress=progress,
-    )
+    try:
+        path = write_campaign(
+            out,
+            days=args.days,
+            spall_tooth=None if args.no_spall else args.spall_tooth,
+            onset_day=args.onset_day,
+            seed=args.seed,
+            record_format=args.format,
+            seconds=args.seconds,
+            campaign_id=args.campaign_id,
+            start=args.start,
+            base_model=model,
+            progress=progress,
+        )
+    except SimulationError as error:
+        raise InputError(str(error)) from None
     print(f"wrote {path}")
     return 0

@@ -23,6 +23,7 @@ from physics.config import (
     WheelBody,
 )
 from physics.simulator import (
+    SimulationError,
     mesh_mode_frequency_hz,
     model_geometry,
     simulate,
@@ -239,8 +240,13 @@ def test_eccentricity_moves_the_mesh_but_a_load_fluctuation_does_not() -> None:
     fit = np.linalg.lstsq(np.column_stack([np.cos(theta), np.sin(theta)]), deviation, rcond=None)[0]
     assert math.hypot(*fit) == pytest.approx(ecc_um * 1e-6 / rb1, rel=0.05)
     # The 1× TE component is the eccentricity itself (geometric, load independent).
+    # A 10 % load fluctuation at once per output revolution (a stiff speed loop keeps the
+    # speed within a few per cent at this low speed).
     loaded = base.replace(
-        operating=Operating(speed_rpm=60.0, load_fluctuation_fraction=0.3, load_fluctuation_order=1)
+        operating=Operating(
+            speed_rpm=60.0, load_fluctuation_fraction=0.1, load_fluctuation_order=1
+        ),
+        drive=Drive(speed_control_time_constant_s=0.005),
     )
     _, deviation_load = switching_angle_deviation_rad(loaded)
     assert np.max(np.abs(deviation_load)) < 0.05 * ecc_um * 1e-6 / rb1
@@ -317,3 +323,41 @@ def test_contact_set_always_settles() -> None:
     b = model_geometry(GearPairModel()).face_width_m
     # The spalled strip (8 mm) was out of contact while it crossed the single-contact zone.
     assert result.contact_length_m.min() == pytest.approx(b - 8e-3, abs=2e-4)
+
+
+@pytest.mark.parametrize(
+    ("shaft", "pulses_per_rev"), [("pinion", 1), ("pinion", 3), ("gear", 1), ("gear", 2)]
+)
+def test_first_tach_edge_of_a_record_is_the_pinion_reference(
+    shaft: str, pulses_per_rev: int
+) -> None:
+    # The pipeline measures the pinion angle from a record's first tach edge: that edge must
+    # be where the pinion passes its mark, whatever the shaft and the pulses per revolution.
+    model = GearPairModel(
+        sensors=QUIET,
+        tachometer=Tachometer(shaft=shaft, pulses_per_rev=pulses_per_rev),  # type: ignore[arg-type]
+        acquisition=Acquisition(warmup_s=0.13),
+    )
+    result = simulate(model, seconds=0.3)
+    first = result.tach_pulse_times_s[0]
+    assert 0 < first < 0.1 * 60 / model.operating.speed_rpm * 21 / 20
+    angle = float(np.interp(first, result.time_s, result.pinion_angle_rad))
+    assert abs(math.remainder(angle, 2 * math.pi)) < 1e-3
+    assert result.tooth1_pitch_angle_deg == pytest.approx(337.4, abs=0.06)
+    if shaft == "gear":
+        gear_angle = np.interp(result.tach_pulse_times_s, result.time_s, result.gear_angle_rad)
+        steps = np.diff(gear_angle) * pulses_per_rev / (2 * math.pi)
+        np.testing.assert_allclose(steps, 1.0, atol=1e-6)
+
+
+def test_a_drive_that_cannot_hold_the_speed_is_refused() -> None:
+    # 30 % load fluctuation at 60 rpm against a slow speed loop: the pinion would reverse,
+    # outside a driving-flank model, so the simulator says so instead of returning garbage.
+    model = GearPairModel(
+        dofs="torsional",
+        sensors=QUIET,
+        operating=Operating(speed_rpm=60.0, load_fluctuation_fraction=0.3),
+        acquisition=Acquisition(sample_rate_hz=5000, oversampling=4, warmup_s=0.01),
+    )
+    with pytest.raises(SimulationError, match="turned backwards"):
+        simulate(model, seconds=1.0)
