@@ -212,6 +212,9 @@ def manifest_dict(
     }
 
 
+TOOTH1_TOLERANCE_DEG = 0.5
+"""Largest disagreement tolerated between a record's tooth-1 angle and the manifest's."""
+
 RECORD_SUFFIX = {"wav": ".wav", "hdf5": ".h5", "tdms": ".tdms"}
 
 
@@ -234,7 +237,7 @@ def write_campaign(
     The same arguments give byte-identical record files.
     """
     from physics.recordio import write_record
-    from physics.simulator import simulate
+    from physics.simulator import SimulationError, simulate
 
     if record_format not in RECORD_SUFFIX:
         raise ValueError(f"record format must be one of {', '.join(RECORD_SUFFIX)}")
@@ -245,6 +248,15 @@ def write_campaign(
     for plan in plans:
         name = f"day{plan.day:02d}"
         result = simulate(plan.model, seconds=seconds, seed=plan.seed)
+        # One tooth-1 angle serves every record of the manifest: check this record agrees.
+        drift = (
+            result.tooth1_pitch_angle_deg - plans[0].model.tachometer.tooth1_pitch_angle_deg + 180
+        ) % 360 - 180
+        if abs(drift) > TOOTH1_TOLERANCE_DEG:
+            raise SimulationError(
+                f"day {plan.day}: tooth 1 sits {drift:+.2f}° from the manifest's "
+                "tooth1_pitch_angle_deg after the record's first tach edge"
+            )
         rel = f"records/{name}{RECORD_SUFFIX[record_format]}"
         write_record(out / rel, result.channels, result.sample_rate_hz)
         (out / "models").mkdir(parents=True, exist_ok=True)

@@ -90,3 +90,10 @@ def test_record_writer_refuses_bad_input(tmp_path: Path) -> None:
         write_record(tmp_path / "x.wav", {"a": np.zeros(3), "b": np.zeros(4)}, 100.0)
     with pytest.raises(RecordWriteError, match="integer sample rate"):
         write_record(tmp_path / "x.wav", {"a": np.zeros(3)}, 100.5)
+
+
+def test_every_record_puts_tooth_1_where_the_manifest_says(tmp_path: Path) -> None:
+    # Speeds vary from day to day, yet each record's first tach edge is the pinion reference.
+    for day in campaign_plan(days=4, seed=11):
+        result = simulate(day.model, seconds=0.2, seed=day.seed)
+        assert result.tooth1_pitch_angle_deg == pytest.approx(337.4, abs=0.05)
