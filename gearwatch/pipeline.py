@@ -249,6 +249,12 @@ def clipped_fraction(
     return clipped / signal.size
 
 
+def _raw_signal_metrics(signal: np.ndarray) -> dict[str, float]:
+    """RMS and kurtosis of the raw time signal about its mean (what the averages remove too)."""
+    centred = signal - signal.mean()
+    return {"raw_rms": float(rms(centred)), "raw_kurtosis": float(kurtosis(centred))}
+
+
 def gear_revolutions_from_pinion_grid(pinion_revs: np.ndarray, gear_samples_per_rev: int) -> np.ndarray:
     """Regroup pinion-angle samples into gear revolutions, without resampling again.
 
@@ -303,12 +309,14 @@ def _analyze_channel(
         "speed_rpm": (tach.rev_speed_rpm * pinion_per_tach_rev).astype(np.float32),
     }
 
+    raw_metrics = _raw_signal_metrics(signal)
     if not has_teeth:
         metrics = {
             "rms": float(rms(average)),
             "peak": float(peak(average)),
             "crest": float(crest_factor(average)),
             "kurtosis": float(kurtosis(average)),
+            **raw_metrics,
         }
         return ChannelAnalysis(
             channel=name,
@@ -349,7 +357,7 @@ def _analyze_channel(
         )
         for k in range(pinion_teeth)
     ]
-    raw_metrics = gear_metrics(
+    average_metrics = gear_metrics(
         average,
         residual,
         difference,
@@ -358,7 +366,7 @@ def _analyze_channel(
         na4_baseline_variance=baselines.na4_residual_variance,
         nb4_baseline_variance=baselines.nb4_envelope_variance,
     )
-    metrics = {key: float(value) for key, value in raw_metrics.items()}
+    metrics = {key: float(value) for key, value in average_metrics.items()} | raw_metrics
     curves.update(
         {
             "gear_average": gear_average.astype(np.float32),

@@ -14,8 +14,14 @@ import numpy as np
 
 MciForm = Literal["robust", "literal"]
 
-METRIC_NAMES = ("rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er")
-"""Names of the whole-revolution classic metrics, in the order they are reported."""
+METRIC_NAMES = (
+    "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
+    "raw_rms", "raw_kurtosis",
+)
+"""Names of the whole-record metrics, in the order they are reported: the classic gear metrics of
+the pinion synchronous average, then ``raw_rms`` and ``raw_kurtosis`` of the raw time signal about
+its mean — the overall indicators that also see what the averages remove (non-synchronous faults
+such as bearings)."""
 
 TOOTH_INDICATORS = ("mci_depth", "diff_energy", "diff_kurtosis")
 """Per-tooth indicators, each stored as record × tooth × indicator."""
@@ -87,8 +93,9 @@ class ChannelAnalysis:
     """Mean pinion speed."""
     samples_per_rev: int
     metrics: dict[str, float]
-    """Whole-revolution metrics named in :data:`METRIC_NAMES`; without tooth counts only
-    ``rms``, ``peak``, ``crest`` and ``kurtosis`` (the others need the mesh order)."""
+    """Whole-record metrics named in :data:`METRIC_NAMES`; without tooth counts only ``rms``,
+    ``peak``, ``crest``, ``kurtosis``, ``raw_rms`` and ``raw_kurtosis`` (the others need the mesh
+    order)."""
     teeth: list[ToothResult] = field(default_factory=list)
     worst_tooth: int | None = None
     curves: dict[str, np.ndarray] = field(default_factory=dict)

@@ -20,6 +20,7 @@ ToothIndicatorName = Literal["mci_depth", "diff_energy", "diff_kurtosis"]
 AlarmIndicatorName = Literal[
     "mci_depth", "diff_energy", "diff_kurtosis",
     "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
+    "raw_rms", "raw_kurtosis",
 ]  # fmt: skip
 CurveName = Literal["pinion_average", "gear_average", "difference", "mci_raw", "mci", "speed_rpm"]
 

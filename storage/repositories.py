@@ -652,9 +652,12 @@ RULE_FIELDS = (
 DEFAULT_RULES: dict[str, dict[str, Any]] = {
     "mci_depth": {"spread_floor_abs": 0.1},
     "kurtosis": {"spread_floor_abs": 0.1},
+    "raw_kurtosis": {"spread_floor_abs": 0.1},
 }
 """Rules every new rig gets (:meth:`AlarmRuleRepository.ensure_defaults`): the MCI well depth
-per tooth and the whole-record kurtosis (the one that works without tooth counts). Other
+per tooth, the whole-record kurtosis of the average and of the raw signal (these work without
+tooth counts; the raw one also sees non-synchronous faults such as bearings, which averaging
+removes). Other
 settings are the defaults of :class:`storage.models.AlarmRule`: 8 baseline records, warning 4,
 alarm 8, clear 2 (baseline units), persistence 2. Absolute spread floors — 0.1 Np for the
 well depth, 0.1 for kurtosis — are the smallest change that counts: a baseline learned from a

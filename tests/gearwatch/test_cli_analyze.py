@@ -68,7 +68,7 @@ def test_analyze_json_localises_the_spall(campaign_dir: Path, record: str) -> No
     assert [t["tooth"] for t in report["teeth"]] == list(range(1, 21))
     assert {"mci_depth", "diff_energy", "diff_kurtosis"} <= set(report["teeth"][0])
     assert set(report["metrics"]) == {"rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4",
-                                      "nb4", "m6a", "m8a", "er"}
+                                      "nb4", "m6a", "m8a", "er", "raw_rms", "raw_kurtosis"}
     assert {"tach_repairs", "speed_variation"} <= set(report["quality"])
     provenance = report["provenance"]
     import hashlib

@@ -156,7 +156,7 @@ def test_without_tooth_counts_per_tooth_results_are_omitted(spalled: SyntheticRe
     )
     channel = analysis.channels[0]
     assert channel.teeth == [] and channel.worst_tooth is None
-    assert set(channel.metrics) == {"rms", "peak", "crest", "kurtosis"}
+    assert set(channel.metrics) == {"rms", "peak", "crest", "kurtosis", "raw_rms", "raw_kurtosis"}
     assert channel.samples_per_rev == AnalysisParameters().samples_per_rev_without_teeth
 
 
@@ -168,6 +168,17 @@ def test_pulse_time_tachometer(spalled: SyntheticRecord) -> None:
         record, campaign_for(spalled, kind="pulse_times"), input_sha256="e" * 64
     ).channels[0]
     assert channel.worst_tooth == 16
+
+
+def test_raw_signal_metrics_against_scipy(spalled: SyntheticRecord) -> None:
+    import scipy.stats
+
+    channel = analyze_record(
+        record_of(spalled), campaign_for(spalled), input_sha256="f" * 64
+    ).channels[0]
+    x = spalled.acceleration
+    assert channel.metrics["raw_kurtosis"] == pytest.approx(scipy.stats.kurtosis(x, fisher=False))
+    assert channel.metrics["raw_rms"] == pytest.approx(np.std(x))
 
 
 def test_explicit_na4_baseline_changes_na4_only(spalled: SyntheticRecord) -> None:

@@ -12,6 +12,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from gearwatch.errors import Conflict, InputError, NotFound
+from gearwatch.results import METRIC_NAMES
 from storage.evaluation import evaluate_record
 from storage.models import ApiKey, Record, ResultVersion, ToothIndicator
 from storage.repositories import (
@@ -169,7 +170,7 @@ def test_metrics_channel_results_and_nan_values(db_session: Session) -> None:
     result = accept(db_session, record, mci_depth={3: float("nan")}, kurtosis=4.5)
     records = RecordRepository(db_session)
     metrics = {m.metric: m.value for m in records.metrics(result.id)}
-    assert metrics["kurtosis"] == 4.5 and len(metrics) == 11
+    assert metrics["kurtosis"] == 4.5 and len(metrics) == len(METRIC_NAMES)
     teeth = {(t.tooth, t.indicator) for t in records.tooth_indicators(result.id)}
     assert (3, "mci_depth") not in teeth and (3, "diff_energy") in teeth
     (channel_result,) = records.channel_results(result.id)
@@ -310,8 +311,8 @@ def test_alarm_rule_crud_and_validation(db_session: Session) -> None:
     campaign = CampaignRepository(db_session).ensure(campaign_config())
     rules = AlarmRuleRepository(db_session)
     defaults = rules.ensure_defaults(campaign.rig_id)
-    assert sorted(r.indicator for r in defaults) == ["kurtosis", "mci_depth"]
-    assert len(rules.ensure_defaults(campaign.rig_id)) == 2
+    assert sorted(r.indicator for r in defaults) == ["kurtosis", "mci_depth", "raw_kurtosis"]
+    assert len(rules.ensure_defaults(campaign.rig_id)) == 3  # idempotent
     rule = rules.create(campaign.rig_id, "diff_energy", baseline_records=5, persistence=2)
     assert (rule.warning_level, rule.alarm_level, rule.clear_level) == (4.0, 8.0, 2.0)
     with pytest.raises(Conflict):
