@@ -67,7 +67,7 @@ def mesh_mode_frequency_hz(model: GearPairModel, stiffness_n_per_m: float | None
     --------
     >>> from physics.config import GearPairModel
     >>> round(mesh_mode_frequency_hz(GearPairModel()))
-    2809
+    2750
     """
     geo = model_geometry(model)
     k = mean_mesh_stiffness_n_per_m(model) if stiffness_n_per_m is None else stiffness_n_per_m
@@ -89,7 +89,7 @@ def static_transmission_error_m(model: GearPairModel, pairs_in_contact: int) -> 
     --------
     >>> from physics.config import GearPairModel
     >>> round(static_transmission_error_m(GearPairModel(dofs="torsional"), 1) * 1e6, 3)
-    7.238
+    7.239
     """
     geo = model_geometry(model)
     force = model.operating.load_torque_nm / geo.gear_base_radius_m
