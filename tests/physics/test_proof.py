@@ -19,7 +19,7 @@ from gearwatch.pipeline import analyze_record
 from ingest.manifest import parse_manifest
 from ingest.types import RecordData
 from physics.campaign import campaign_plan, manifest_dict
-from physics.config import Deviations, GearPairModel, Sensor, Spall
+from physics.config import Deviations, GearPairModel, Sensor, Spall, Tachometer
 from physics.simulator import SimulationResult, simulate
 
 SAMPLES_PER_REV = 20 * 64
@@ -80,3 +80,20 @@ def test_default_mci_finds_the_spalled_tooth_and_not_on_healthy_days() -> None:
         assert worst[healthy] != 16
         assert depths[healthy][15] < 0.1
         assert depths[healthy].max() < 0.6 * depths[4][15]
+
+
+@pytest.mark.parametrize(("shaft", "pulses_per_rev"), [("gear", 1), ("pinion", 3)])
+def test_tooth_numbering_holds_for_any_tach_through_the_pipeline(
+    shaft: str, pulses_per_rev: int
+) -> None:
+    # The manifest's tooth1_pitch_angle_deg is honoured whatever shaft carries the tach and
+    # however many pulses it gives: the pipeline still names the spalled tooth.
+    day = campaign_plan(days=2, spall_tooth=16, onset_day=2, seed=0)[1]
+    model = day.model.replace(
+        tachometer=Tachometer(shaft=shaft, pulses_per_rev=pulses_per_rev)  # type: ignore[arg-type]
+    )
+    campaign = parse_manifest(manifest_dict(model, [], "t", "t"), root=Path("."))
+    assert campaign.tachometer is not None and campaign.tachometer.shaft == shaft
+    result = simulate(model, seconds=4.0, seed=day.seed)
+    record = RecordData(result.channels, result.sample_rate_hz)
+    assert analyze_record(record, campaign, input_sha256="").channels[0].worst_tooth == 16
