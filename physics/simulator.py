@@ -360,6 +360,8 @@ def simulate(
     speed = op.speed_rpm * 2 * math.pi / 60
     n_warm, tach_offset = _record_start(model, speed)
     n_rec = round(seconds * fs_out)
+    if n_rec < 2:
+        raise ValueError("seconds must cover at least two output samples")
     asm = _assemble(model, geo, speed, keep_unexcited_dofs)
     a_matrix = np.diag(asm.mass) * (4.0 / h**2) + asm.damping * (2.0 / h) + asm.stiffness
     a_inv = np.linalg.inv(a_matrix)

@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from gearwatch.errors import InputError
     from physics.config import model_to_toml
     from physics.recordio import RecordWriteError, record_format, write_record
-    from physics.simulator import SimulationError, simulate
+    from physics.simulator import simulate
 
     model = load_model(args.model)
     if args.print_model:
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(str(error)) from None
     try:
         result = simulate(model, seconds=args.seconds, seed=args.seed)
-    except SimulationError as error:
+    except ValueError as error:  # SimulationError and bad lengths: input, not a bug
         raise InputError(f"{args.model or 'default model'}: {error}") from None
     path = write_record(args.out_file, result.channels, result.sample_rate_hz)
     names = ", ".join(result.channels)

@@ -49,7 +49,6 @@ def run(args: argparse.Namespace) -> int:
     from gearwatch.commands.simulate import load_model
     from gearwatch.errors import InputError
     from physics.campaign import write_campaign
-    from physics.simulator import SimulationError
 
     out = Path(args.out_dir)
     if out.exists() and not out.is_dir():
@@ -88,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
             base_model=model,
             progress=progress,
         )
-    except SimulationError as error:
+    except ValueError as error:  # SimulationError and bad lengths: input, not a bug
         raise InputError(str(error)) from None
     print(f"wrote {path}")
     return 0

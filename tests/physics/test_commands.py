@@ -45,6 +45,7 @@ def test_print_model_round_trips_and_is_accepted(
         (["simulate", "{tmp}/r.wav", "--model", "{tmp}/bad.toml"], "geometry.modul_mm"),
         (["simulate", "{tmp}/r.mp3", "--seconds", "0.1"], "unknown record format"),
         (["simulate", "{tmp}/r.wav", "--seconds", "0"], "--seconds"),
+        (["simulate", "{tmp}/r.wav", "--seconds", "0.00001"], "two output samples"),
         (["simulate"], "OUT_FILE is required"),
         (["simulate-campaign", "{tmp}/c", "--spall-tooth", "25"], "--spall-tooth"),
         (["simulate-campaign", "{tmp}/c", "--days", "0"], "--days"),
