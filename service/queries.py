@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from contextlib import AbstractContextManager
+from typing import Generic, TypeVar
+
 import numpy as np
 from sqlalchemy.orm import Session
 
@@ -12,6 +15,8 @@ BAND_HALF_WIDTH_SIGMAS = 3.0
 MIN_BAND_RECORDS = 3
 """Fewer baseline records than this give no band (a median of two is no baseline)."""
 DEFAULT_BASELINE_RECORDS = 10
+
+BodyT = TypeVar("BodyT")
 
 
 def tooth_sectors(
@@ -101,19 +106,30 @@ def trend_version(session: Session, rig_pk: int) -> tuple[int, int]:
     return int(row[0] or 0), int(row[1] or 0)
 
 
-class ResponseCache:
+class ResponseCache(Generic[BodyT]):
     """A small thread-safe LRU of serialized responses, each tagged with the data version it
-    was built from and when that version was last confirmed."""
+    was built from and when that version was last confirmed.
+
+    It also keeps the last confirmed data version of each group (a rig): one database check
+    per group and ``max_age_s`` then serves every cached answer of the group
+    (:meth:`group_version`, :meth:`confirm`), and striped locks let concurrent misses of one
+    key build its answer once (:meth:`build_lock`).
+    """
+
+    LOCK_STRIPES = 64
 
     def __init__(self, max_entries: int = 256) -> None:
         import threading
         from collections import OrderedDict
 
-        self._entries: OrderedDict[object, tuple[object, bytes, float]] = OrderedDict()
+        self._entries: OrderedDict[object, tuple[object, BodyT, float]] = OrderedDict()
+        self._groups: dict[object, tuple[object, float]] = {}
         self._lock = threading.Lock()
+        # A fixed set of locks (keys come from query parameters: a lock per key would grow).
+        self._build_locks = [threading.Lock() for _ in range(self.LOCK_STRIPES)]
         self.max_entries = max_entries
 
-    def fresh(self, key: object, max_age_s: float) -> tuple[object, bytes] | None:
+    def fresh(self, key: object, max_age_s: float) -> tuple[object, BodyT] | None:
         """The entry if its version was confirmed less than ``max_age_s`` ago."""
         import time
 
@@ -124,7 +140,7 @@ class ResponseCache:
             self._entries.move_to_end(key)
             return entry[0], entry[1]
 
-    def get(self, key: object, version: object) -> bytes | None:
+    def get(self, key: object, version: object) -> BodyT | None:
         """The body built from ``version`` (and mark it confirmed now), else ``None``."""
         import time
 
@@ -136,7 +152,7 @@ class ResponseCache:
             self._entries.move_to_end(key)
             return entry[1]
 
-    def put(self, key: object, version: object, body: bytes) -> None:
+    def put(self, key: object, version: object, body: BodyT) -> None:
         import time
 
         with self._lock:
@@ -144,3 +160,24 @@ class ResponseCache:
             self._entries.move_to_end(key)
             while len(self._entries) > self.max_entries:
                 self._entries.popitem(last=False)
+
+    def group_version(self, group: object, max_age_s: float) -> object | None:
+        """The group's data version if it was confirmed less than ``max_age_s`` ago."""
+        import time
+
+        with self._lock:
+            found = self._groups.get(group)
+            if found is None or time.monotonic() - found[1] >= max_age_s:
+                return None
+            return found[0]
+
+    def confirm(self, group: object, version: object) -> None:
+        """Record ``version`` as the group's data version, confirmed now."""
+        import time
+
+        with self._lock:
+            self._groups[group] = (version, time.monotonic())
+
+    def build_lock(self, key: object) -> AbstractContextManager[bool]:
+        """The lock to hold while building ``key``'s answer (shared with a few other keys)."""
+        return self._build_locks[hash(key) % self.LOCK_STRIPES]

@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import gzip
 import hashlib
+from dataclasses import dataclass
 from typing import Annotated
 
 from fastapi import APIRouter, Path, Query, Request, Response
 from sqlalchemy.orm import Session
+from starlette.concurrency import run_in_threadpool
 
 from service import schemas
 from service.convert import rig_by_name, rig_out, rule_out
 from service.deps import CurrentKey, DbSession, OperatorKey, SettingsDep
+from service.queries import ResponseCache
 from service.routers.common import RigName, errors
 from storage.models import Rig
 
@@ -43,13 +47,14 @@ def get_rig(rig_id: RigName, db: DbSession, _caller: CurrentKey) -> schemas.RigO
     description="The current result version of every accepted record, in `taken_at` order. "
     "Without `tooth` every pinion tooth is returned; `values[i][j]` belongs to `records[i]` "
     "and `teeth[j]`. With several accelerometer channels, `channel` chooses one (default: the "
-    "first by name).",
+    "first by name). Answers carry an `ETag` (`If-None-Match` gives 304 while the rig's data "
+    "is unchanged) and are gzip-compressed for clients that send `Accept-Encoding: gzip`.",
     responses={
         304: {"description": "Not modified (If-None-Match matched the ETag)"},
         **errors(401, 404, 422),
     },
 )
-def trends(
+async def trends(
     rig_id: RigName,
     request: Request,
     db: DbSession,
@@ -66,70 +71,119 @@ def trends(
         Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["acc1"]),
     ] = None,
 ) -> Response:
-    from service.queries import ResponseCache, trend_version
+    # Trends only change when indicator rows are added. The serialized answer (plain and
+    # gzip) is kept per (rig, indicator, tooth, channel) and served straight from memory while
+    # the rig's data version, checked at most every ``trend_cache_seconds``, is unchanged: a
+    # dashboard's poll then costs no database query, no thread and no serialization here.
+    cache: ResponseCache[CachedTrend] = request.app.state.trend_cache
+    key = (rig_id, indicator, tooth, channel)
+    version = cache.group_version(rig_id, settings.trend_cache_seconds)
+    answer = cache.get(key, version) if version is not None else None
+    if answer is None:
+        answer = await run_in_threadpool(_load_trend, db, cache, key)
+    gzipped = _accepts_gzip(request.headers.get("accept-encoding", ""))
+    etag = answer.etag_gzip if gzipped else answer.etag
+    headers = {"ETag": etag, "Vary": "Accept-Encoding"}
+    if _matches(request.headers.get("if-none-match"), answer):
+        return Response(status_code=304, headers=headers)
+    if gzipped:
+        headers["Content-Encoding"] = "gzip"
+        return Response(answer.body_gzip, media_type="application/json", headers=headers)
+    return Response(answer.body, media_type="application/json", headers=headers)
 
-    rig = rig_by_name(db, rig_id)
-    # Trends only change when indicator rows are added: the serialized answer is served again
-    # while the rig's data fingerprint is unchanged (re-checked at most every
-    # ``trend_cache_seconds``), and a client holding it gets 304.
-    cache: ResponseCache = request.app.state.trend_cache
-    cache_key = (rig.id, indicator, tooth, channel)
-    fresh = cache.fresh(cache_key, settings.trend_cache_seconds)
-    if fresh is not None:
-        version, body = fresh
-    else:
-        version = trend_version(db, rig.id)
-        cached = cache.get(cache_key, version)
-        if cached is None:
-            cached = _trend(db, rig, indicator, tooth, channel).model_dump_json().encode()
-            cache.put(cache_key, version, cached)
-        body = cached
-    etag = _etag(rig.id, indicator, tooth, channel, version)
-    if request.headers.get("if-none-match") == etag:
-        return Response(status_code=304, headers={"ETag": etag})
-    return Response(body, media_type="application/json", headers={"ETag": etag})
+
+@dataclass(frozen=True)
+class CachedTrend:
+    """One trend answer as sent: JSON bytes, their gzip, and the ETag of each."""
+
+    etag: str
+    etag_gzip: str
+    body: bytes
+    body_gzip: bytes
+
+
+GZIP_LEVEL = 1
+"""Compressed once per data version: level 1 is ten times faster than 6 on a 165 KB trend
+(2 vs 19 ms) for a 7 % larger answer (71 vs 67 KB, from 165 KB)."""
+
+
+def _load_trend(
+    db: Session, cache: ResponseCache[CachedTrend], key: tuple[str, str, int | None, str | None]
+) -> CachedTrend:
+    """Check the rig's data version in the database; build the answer if it is not cached."""
+    from service.queries import trend_version
+
+    rig_name, indicator, tooth, channel = key
+    rig = rig_by_name(db, rig_name)
+    # The pinion tooth count is part of the version: it sets the columns of the answer.
+    version = (rig.id, rig.pinion_teeth, *trend_version(db, rig.id))
+    cache.confirm(rig_name, version)
+    answer = cache.get(key, version)
+    if answer is not None:
+        return answer
+    with cache.build_lock(key):  # concurrent misses of one key: built once
+        answer = cache.get(key, version)
+        if answer is None:
+            body = trend_json(db, rig, indicator, tooth, channel)
+            etag = _etag(key, version)
+            answer = CachedTrend(
+                etag=etag,
+                etag_gzip=etag[:-1] + '-gzip"',  # another representation, another ETag
+                body=body,
+                body_gzip=gzip.compress(body, compresslevel=GZIP_LEVEL, mtime=0),
+            )
+            cache.put(key, version, answer)
+    return answer
+
+
+def _accepts_gzip(accept_encoding: str) -> bool:
+    """Whether an ``Accept-Encoding`` value allows gzip (``gzip`` or ``*`` with q > 0)."""
+    for item in accept_encoding.lower().split(","):
+        coding, _, parameters = item.partition(";")
+        if coding.strip() in ("gzip", "*"):
+            quality = parameters.strip().removeprefix("q=")
+            try:
+                return not parameters.strip() or float(quality) > 0
+            except ValueError:
+                return False
+    return False
+
+
+def _matches(if_none_match: str | None, answer: CachedTrend) -> bool:
+    """Whether ``If-None-Match`` names this answer (either encoding; weak tags compare too)."""
+    if not if_none_match:
+        return False
+    tags = {tag.strip().removeprefix("W/") for tag in if_none_match.split(",")}
+    return "*" in tags or answer.etag in tags or answer.etag_gzip in tags
 
 
 def _etag(*key: object) -> str:
     return '"' + hashlib.sha256(repr(key).encode()).hexdigest()[:32] + '"'
 
 
-def _trend(
+def trend_json(
     db: Session, rig: Rig, indicator: str, tooth: int | None, channel: str | None
-) -> schemas.TrendOut:
+) -> bytes:
+    """The trend answer's JSON: one query into a records × teeth matrix, serialized without
+    re-validation (the values come from the database; NaN and missing cells become null)."""
     from storage.repositories import TrendRepository
 
-    points = TrendRepository(db).trend(rig.id, indicator, tooth, channel=channel)
-    if channel is None and points:
-        channel = min(p.channel for p in points)
-        points = [p for p in points if p.channel == channel]
-    if tooth is not None:
-        teeth = [tooth]
-    elif rig.pinion_teeth:
-        teeth = list(range(1, rig.pinion_teeth + 1))
-    else:
-        teeth = sorted({p.tooth for p in points})
-    column = {t: j for j, t in enumerate(teeth)}
-    records: list[schemas.TrendPoint] = []
-    values: list[list[float | None]] = []
-    row_of: dict[int, int] = {}
-    for point in points:
-        row = row_of.get(point.record_id)
-        if row is None:
-            row = row_of[point.record_id] = len(records)
-            records.append(schemas.TrendPoint(record_id=point.record_id, taken_at=point.taken_at))
-            values.append([None] * len(teeth))
-        j = column.get(point.tooth)
-        if j is not None:
-            values[row][j] = point.value
-    return schemas.TrendOut(
-        rig_id=rig.name,
-        indicator=indicator,  # type: ignore[arg-type]
-        channel=channel,
-        teeth=teeth,
-        records=records,
-        values=values,
+    matrix = TrendRepository(db).trend_matrix(
+        rig.id, indicator, tooth, channel=channel, pinion_teeth=rig.pinion_teeth
     )
+    point = schemas.TrendPoint.model_construct
+    answer = schemas.TrendOut.model_construct(
+        rig_id=rig.name,
+        indicator=indicator,
+        channel=matrix.channel,
+        teeth=matrix.teeth,
+        records=[
+            point(record_id=i, taken_at=t)
+            for i, t in zip(matrix.record_ids, matrix.taken_at, strict=True)
+        ],
+        values=matrix.values.tolist(),
+    )
+    return answer.model_dump_json().encode()
 
 
 @router.get(
