@@ -27,6 +27,8 @@ import tomli_w
 
 Wheel = Literal["pinion", "gear"]
 DofSet = Literal["full", "torsional"]
+StiffnessProfile = Literal["constant", "linear", "parabolic"]
+ForceDirection = Literal["line_of_action", "off_line_of_action"]
 
 
 class ModelConfigError(ValueError):
@@ -54,6 +56,18 @@ class Mesh:
     """Mesh stiffness per unit contact length (ISO 6336 single stiffness c' ≈ 14 N/(mm·µm))."""
     damping_ratio: float = 0.05
     """Mesh-mode damping ratio; applied as damping proportional to the loaded mesh stiffness."""
+    friction_coefficient: float = 0.0
+    """Coulomb coefficient μ of sliding friction at the contact (0: frictionless, as before).
+
+    The friction force μ·N acts perpendicular to the line of action, reverses at the pitch
+    point, and has a moment about each wheel's axis (arm: distance from that wheel's
+    tangency point on the base circle to the contact)."""
+    stiffness_profile: StiffnessProfile = "constant"
+    """Variation of the stiffness per unit length along the path of contact (ξ = −1 at its
+    start, +1 at its end): ``"linear"`` k'(1 + a ξ), ``"parabolic"`` k'(1 − a (ξ² − 1/3));
+    both average to k' over the path, so the mean mesh stiffness is unchanged."""
+    stiffness_profile_variation: float = 0.0
+    """The coefficient ``a`` of ``stiffness_profile`` (k' must stay > 0 along the path)."""
 
 
 @dataclass(frozen=True)
@@ -67,6 +81,12 @@ class WheelBody:
     bearing_axial_stiffness_n_per_m: float = 5.0e8
     bearing_tilt_stiffness_nm_per_rad: float = 1.0e7
     bearing_damping_ratio: float = 0.05
+    bearing_radial_stiffness_ratio: float = 1.0
+    """Anisotropic support: radial stiffness along the second principal axis divided by
+    ``bearing_radial_stiffness_n_per_m`` (along the first). 1: isotropic (as before)."""
+    bearing_principal_axis_deg: float = 0.0
+    """Angle from the line of action to the first principal axis, towards the off-line
+    direction. Away from 0° and 90° an anisotropic support couples the two radial directions."""
 
 
 def _default_gear_body() -> WheelBody:
@@ -170,7 +190,10 @@ def _default_modes() -> list[StructuralMode]:
 class Sensor:
     name: str = "acc"
     source: Wheel = "pinion"
-    """Which wheel's bearing force (along the line of action) drives this sensor."""
+    """Which wheel's bearing force drives this sensor."""
+    direction: ForceDirection = "line_of_action"
+    """Component of that bearing force: along the line of action, or perpendicular to it in
+    the plane of the wheels (where sliding friction and support anisotropy show)."""
     noise_rms_m_s2: float = 0.05
     modes: list[StructuralMode] = field(default_factory=_default_modes)
 
@@ -324,6 +347,23 @@ def validate_model(model: GearPairModel) -> None:
         raise ModelConfigError("geometry.pinion_teeth and geometry.gear_teeth must be ≥ 5")
     if not 5.0 <= g.pressure_angle_deg <= 40.0:
         raise ModelConfigError("geometry.pressure_angle_deg must be within 5..40")
+    mesh = model.mesh
+    if not mesh.friction_coefficient >= 0:
+        raise ModelConfigError("mesh.friction_coefficient must be ≥ 0")
+    a = mesh.stiffness_profile_variation
+    lowest = {
+        "constant": 1.0,
+        "linear": 1.0 - abs(a),
+        "parabolic": min(1.0 + a / 3, 1.0 - 2 * a / 3),
+    }
+    if not lowest[mesh.stiffness_profile] > 0:
+        raise ModelConfigError(
+            "mesh.stiffness_profile_variation: the stiffness per length must stay > 0 "
+            "(linear: |a| < 1; parabolic: −3 < a < 1.5)"
+        )
+    for label, body in (("pinion", model.pinion), ("gear", model.gear)):
+        if not body.bearing_radial_stiffness_ratio > 0:
+            raise ModelConfigError(f"{label}.bearing_radial_stiffness_ratio must be > 0")
     if model.acquisition.oversampling < 1:
         raise ModelConfigError("acquisition.oversampling must be ≥ 1")
     if not 0 < model.acquisition.anti_alias_cutoff_fraction < 0.5:

@@ -33,16 +33,24 @@ P_KB1, P_CB1, P_KB2, P_CB2 = range(18, 22)
 P_TORQUE_FF, P_LOAD, P_LOAD_FLUCT, P_LOAD_ORDER, P_LOAD_PHASE = range(22, 27)
 P_SPEED, P_DRIFT, P_FLUCT, P_FLUCT_HZ, P_CONTROL_GAIN, P_TACH_PPR = range(27, 33)
 P_TACH_OFFSET = 33
-N_PARAMS = 34
+# Extensions (issue 6): sliding friction, stiffness profile, anisotropic supports.
+P_MU, P_PITCH_POINT, P_T1T2, P_KPROFILE, P_KPROFILE_A = range(34, 39)
+P_KXY1, P_CXY1, P_KYY1, P_CYY1, P_KXY2, P_CXY2, P_KYY2, P_CYY2 = range(39, 47)
+N_PARAMS = 47
+
+# Values of p[P_KPROFILE].
+KPROFILE_CONSTANT, KPROFILE_LINEAR, KPROFILE_PARABOLIC = range(3)
 
 # Rows of the per-output-sample array.
 OUT_PINION_ANGLE, OUT_GEAR_ANGLE, OUT_TE, OUT_MESH_FORCE = range(4)
 OUT_BEARING_PINION, OUT_BEARING_GEAR, OUT_CONTACT_LENGTH = range(4, 7)
-N_OUT = 7
+OUT_BEARING_PINION_OFF, OUT_BEARING_GEAR_OFF, OUT_FRICTION_FORCE = range(7, 10)
+N_OUT = 10
 
 # Indices into the integer DOF map (−1: locked or absent).
 D_MOTOR, D_PINION_ROT, D_GEAR_ROT, D_LOAD, D_PINION_X, D_GEAR_X = range(6)
-N_DOF_MAP = 6
+D_PINION_Y, D_GEAR_Y, D_PINION_RX, D_GEAR_RX = range(6, 10)
+N_DOF_MAP = 10
 
 MAX_PAIRS = 6
 
@@ -81,6 +89,16 @@ def _relief(u: float, p: np.ndarray) -> float:
     return removed
 
 
+@njit(cache=True, fastmath=True, inline="always")
+def _profile_factor(u: float, p: np.ndarray) -> float:
+    """Stiffness-per-length factor along the path of contact (mean 1 over the path)."""
+    start, end = p[P_START], p[P_END]
+    xi = min(max((2.0 * u - start - end) / (end - start), -1.0), 1.0)
+    if p[P_KPROFILE] == KPROFILE_LINEAR:
+        return 1.0 + p[P_KPROFILE_A] * xi
+    return 1.0 - p[P_KPROFILE_A] * (xi * xi - 1.0 / 3.0)
+
+
 @njit(cache=True, fastmath=True)
 def _build_segments(
     s_m: float,
@@ -105,9 +123,15 @@ def _build_segments(
     seg_gap: np.ndarray,
     seg_k: np.ndarray,
     seg_w: np.ndarray,
+    seg_u: np.ndarray,
+    seg_slide: np.ndarray,
     breaks: np.ndarray,
 ) -> int:
-    """Cut the contact lines into pieces of constant deviation; return how many."""
+    """Cut the contact lines into pieces of constant deviation; return how many.
+
+    Each piece also gets its pair's contact position ``seg_u`` and the sign of the sliding
+    velocity ``seg_slide`` (−1 before the pitch point, +1 after, averaged over the step's
+    travel so that the reversal is not quantised to the step)."""
     pb, u0, start, end = p[P_PB], p[P_U0], p[P_START], p[P_END]
     half_face = p[P_HALF_FACE]
     n_def = defect_wheel.shape[0]
@@ -132,6 +156,9 @@ def _build_segments(
             continue
         base_dev = _relief(u, p) + pitch1[tooth1] + pitch2[tooth2]
         k_line = p[P_KLEN] * kfac1[tooth1] * kfac2[tooth2] * weight
+        if p[P_KPROFILE] != KPROFILE_CONSTANT:
+            k_line *= _profile_factor(u, p)
+        slide = 2.0 * _window_fraction(u, travel_m, p[P_PITCH_POINT], 1e300) - 1.0
         n_break = 2
         breaks[0] = -half_face
         breaks[1] = half_face
@@ -169,6 +196,8 @@ def _build_segments(
             seg_gap[n_seg] = ecc_m - deviation
             seg_k[n_seg] = k_line
             seg_w[n_seg] = weight
+            seg_u[n_seg] = u
+            seg_slide[n_seg] = slide
             n_seg += 1
     return n_seg
 
@@ -233,6 +262,57 @@ def _contact_sums(
     sums[6] = margin
 
 
+@njit(cache=True, fastmath=True)
+def _friction_sums(
+    n_seg: int,
+    p0: float,
+    p1: float,
+    w0: float,
+    w1: float,
+    eta: float,
+    seg_z0: np.ndarray,
+    seg_z1: np.ndarray,
+    seg_gap: np.ndarray,
+    seg_k: np.ndarray,
+    seg_u: np.ndarray,
+    seg_slide: np.ndarray,
+    sums: np.ndarray,
+) -> None:
+    """Sliding-sign-weighted normal loads: Σ s·N, Σ s·u·N and Σ s·∫z dN over the loaded parts.
+
+    The normal load per unit length is k(δ + η δ̇) with δ = p0 + p1 z + gap and
+    δ̇ = w0 + w1 z (the mesh force's own law); s is the sign of the sliding velocity.
+    """
+    n_s = n_su = m_s = 0.0
+    for i in range(n_seg):
+        za, zb = seg_z0[i], seg_z1[i]
+        c = p0 + seg_gap[i]
+        if abs(p1) < 1e-300:
+            if c <= 0.0:
+                continue
+        else:
+            z_zero = -c / p1
+            if p1 > 0.0:
+                za = max(za, z_zero)
+            else:
+                zb = min(zb, z_zero)
+            if zb <= za:
+                continue
+        k = seg_k[i] * seg_slide[i]
+        d1 = zb - za
+        d2 = 0.5 * (zb * zb - za * za)
+        d3 = (zb * zb * zb - za * za * za) / 3.0
+        constant = c + eta * w0
+        slope = p1 + eta * w1
+        load = k * (constant * d1 + slope * d2)
+        n_s += load
+        n_su += seg_u[i] * load
+        m_s += k * (constant * d2 + slope * d3)
+    sums[0] = n_s
+    sums[1] = n_su
+    sums[2] = m_s
+
+
 @njit(cache=True, fastmath=True, inline="always")
 def _biquad(coef: np.ndarray, state: np.ndarray, x: float) -> float:
     """Transposed direct form II; coef = b0, b1, b2, a1, a2 (a0 = 1)."""
@@ -284,12 +364,18 @@ def integrate(
     Output sample i is the state at time ``(n_warm_steps + i·oversampling)·h`` (the record
     starts at ``n_warm_steps·h``, which must be ≥ 1 step), so that output samples fall at
     the same instants whatever the oversampling. Rows of ``out`` are the
-    ``OUT_*`` quantities; ``sensor_out[s]`` is sensor s: its bearing force (along the line
-    of action, ``sensor_source[s]`` 0 pinion / 1 gear) through the biquads
+    ``OUT_*`` quantities; ``sensor_out[s]`` is sensor s: its bearing force
+    (``sensor_source[s]``: 0 pinion / 1 gear along the line of action, 2 pinion / 3 gear
+    perpendicular to it) through the biquads
     ``mode_coef[s, m]`` summed over modes, then through the anti-alias cascade, both run
     at the integration rate. ``edges`` receives the tachometer reference crossings (record
     time, s), interpolated within the step. Returns (edge count, most contact-set
     iterations in a step, steps whose contact set did not settle).
+
+    Sliding friction (``p[P_MU]`` > 0) is applied explicitly: the friction forces and moments
+    computed from the normal loads at the end of a step act during the next one (a lag of
+    one integration step, 1/oversampling of an output sample), which keeps the mesh solve a
+    symmetric rank-2 update.
     """
     n = mass_diag.shape[0]
     h = step_s
@@ -302,6 +388,12 @@ def integrate(
     i_load = dof_map[D_LOAD]
     i_px = dof_map[D_PINION_X]
     i_gx = dof_map[D_GEAR_X]
+    i_py = dof_map[D_PINION_Y]
+    i_gy = dof_map[D_GEAR_Y]
+    i_prx = dof_map[D_PINION_RX]
+    i_grx = dof_map[D_GEAR_RX]
+    mu = p[P_MU]
+    t1t2 = p[P_T1T2]
     i_tach = i_g if tach_on_gear else i_p
     n_steps = n_warm_steps + (n_samples - 1) * oversampling
     n_rec_steps = max(1, (n_samples - 1) * oversampling)
@@ -356,6 +448,9 @@ def integrate(
     seg_gap = np.zeros(max_seg)
     seg_k = np.zeros(max_seg)
     seg_w = np.zeros(max_seg)
+    seg_u = np.zeros(max_seg)
+    seg_slide = np.zeros(max_seg)
+    fric = np.zeros(3)
     breaks = np.zeros(2 * defect_wheel.shape[0] + 2)
     sums = np.zeros(7)
     prev = np.zeros(7)
@@ -369,7 +464,7 @@ def integrate(
     n_sections = anti_alias.shape[0]
     mode_state = np.zeros((n_sensors, n_modes, 2))
     aa_state = np.zeros((n_sensors, n_sections, 2))
-    force_ref = np.zeros(2)
+    force_ref = np.zeros(4)
     n_edges = 0
     tach_phase_prev = (x[i_tach] - p[P_TACH_OFFSET]) * p[P_TACH_PPR] / two_pi
     next_level = math.floor(tach_phase_prev) + 1.0
@@ -396,7 +491,8 @@ def integrate(
         n_seg = _build_segments(
             s_m, travel, p, pinion_teeth, gear_teeth, pitch1, pitch2, kfac1, kfac2,
             defect_wheel, defect_tooth, defect_u0, defect_u1, defect_z0, defect_z1,
-            defect_depth, ecc1 - ecc2, seg_z0, seg_z1, seg_gap, seg_k, seg_w, breaks,
+            defect_depth, ecc1 - ecc2, seg_z0, seg_z1, seg_gap, seg_k, seg_w, seg_u, seg_slide,
+            breaks,
         )  # fmt: skip
 
         # Constant part of the right-hand side.
@@ -414,6 +510,18 @@ def integrate(
                 p[P_LOAD_ORDER] * th_load + p[P_LOAD_PHASE]
             )
         r[i_load] -= load_torque
+        if mu > 0.0:
+            # Friction μ·s·N on each contact, perpendicular to the line of action (−y on the
+            # pinion, +y on the gear for s > 0), with moments about the wheel axes (arms u and
+            # T1T2 − u) and, off the face centre, about the line of action (rx).
+            r[i_p] -= mu * fric[1]
+            r[i_g] += mu * (t1t2 * fric[0] - fric[1])
+            if i_py >= 0:
+                r[i_py] -= mu * fric[0]
+                r[i_gy] += mu * fric[0]
+            if i_prx >= 0:
+                r[i_prx] += mu * fric[2]
+                r[i_grx] -= mu * fric[2]
         p0n = 0.0
         p1n = 0.0
         w0 = 0.0
@@ -501,6 +609,13 @@ def integrate(
 
         k0, k1, g0 = prev[0], prev[1], prev[3]
         mesh_force = k0 * p0e + k1 * p1e + g0 + eta * (k0 * w0 + k1 * w1)
+        friction_force = 0.0
+        if mu > 0.0:
+            _friction_sums(
+                n_seg, p0e, p1e, w0, w1, eta, seg_z0, seg_z1, seg_gap, seg_k, seg_u,
+                seg_slide, fric,
+            )  # fmt: skip
+            friction_force = mu * fric[0]
         if i_px >= 0:
             force_p = p[P_KB1] * x[i_px] + p[P_CB1] * v[i_px]
         else:
@@ -509,20 +624,39 @@ def integrate(
             force_g = p[P_KB2] * x[i_gx] + p[P_CB2] * v[i_gx]
         else:
             force_g = mesh_force
+        # Off the line of action: the support's force, or with rigid supports the friction.
+        if i_py >= 0:
+            force_p += p[P_KXY1] * x[i_py] + p[P_CXY1] * v[i_py]
+            force_g += p[P_KXY2] * x[i_gy] + p[P_CXY2] * v[i_gy]
+            force_p_off = p[P_KYY1] * x[i_py] + p[P_CYY1] * v[i_py]
+            force_g_off = p[P_KYY2] * x[i_gy] + p[P_CYY2] * v[i_gy]
+            if i_px >= 0:
+                force_p_off += p[P_KXY1] * x[i_px] + p[P_CXY1] * v[i_px]
+                force_g_off += p[P_KXY2] * x[i_gx] + p[P_CXY2] * v[i_gx]
+        else:
+            force_p_off = -friction_force
+            force_g_off = friction_force
         if step == 0:
             # Filters start from rest at the initial (static) force: no start-up step.
             force_ref[0] = force_p
             force_ref[1] = force_g
+            force_ref[2] = force_p_off
+            force_ref[3] = force_g_off
 
         # Transfer path and anti-alias filter at the integration rate.
         since_start = step + 1 - n_warm_steps
         is_sample = since_start >= 0 and since_start % oversampling == 0
         sample = since_start // oversampling
         for s_i in range(n_sensors):
-            if sensor_source[s_i] == 0:
+            source = sensor_source[s_i]
+            if source == 0:
                 f_dyn = force_p - force_ref[0]
-            else:
+            elif source == 1:
                 f_dyn = force_g - force_ref[1]
+            elif source == 2:
+                f_dyn = force_p_off - force_ref[2]
+            else:
+                f_dyn = force_g_off - force_ref[3]
             total = 0.0
             for m_i in range(n_modes):
                 total += _biquad(mode_coef[s_i, m_i], mode_state[s_i, m_i], f_dyn)
@@ -550,4 +684,7 @@ def integrate(
             out[OUT_BEARING_PINION, sample] = force_p
             out[OUT_BEARING_GEAR, sample] = force_g
             out[OUT_CONTACT_LENGTH, sample] = prev[5]
+            out[OUT_BEARING_PINION_OFF, sample] = force_p_off
+            out[OUT_BEARING_GEAR_OFF, sample] = force_g_off
+            out[OUT_FRICTION_FORCE, sample] = friction_force
     return n_edges, max_iterations_used, unsettled

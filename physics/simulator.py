@@ -29,7 +29,7 @@ import numpy as np
 from scipy import signal
 
 from physics import kernel
-from physics.config import GearPairModel, StructuralMode, validate_model
+from physics.config import GearPairModel, StructuralMode, WheelBody, validate_model
 from physics.geometry import SpurGeometry, spur_geometry
 
 
@@ -95,9 +95,57 @@ def static_transmission_error_m(model: GearPairModel, pairs_in_contact: int) -> 
     force = model.operating.load_torque_nm / geo.gear_base_radius_m
     te = force / (model.mesh.stiffness_per_length_n_per_m2 * geo.face_width_m * pairs_in_contact)
     if model.dofs == "full":
-        te += force / model.pinion.bearing_radial_stiffness_n_per_m
-        te += force / model.gear.bearing_radial_stiffness_n_per_m
+        for body in (model.pinion, model.gear):
+            if body.bearing_radial_stiffness_ratio == 1.0:
+                te += force / body.bearing_radial_stiffness_n_per_m
+            else:
+                # Anisotropic support: the line-of-action compliance of the 2×2 block.
+                stiffness, _ = bearing_radial_matrices(body)
+                te += force * float(np.linalg.inv(stiffness)[0, 0])
     return te
+
+
+def bearing_radial_matrices(body: WheelBody) -> tuple[np.ndarray, np.ndarray]:
+    """Radial stiffness and damping of a wheel's support in (line of action, off-line) axes.
+
+    Principal stiffnesses k and ratio·k along axes turned by ``bearing_principal_axis_deg``
+    from the line of action; each principal direction has the damping 2ζ√(k m).
+
+    Examples
+    --------
+    >>> from physics.config import WheelBody
+    >>> k, c = bearing_radial_matrices(WheelBody(bearing_radial_stiffness_ratio=0.5,
+    ...                                          bearing_principal_axis_deg=90.0))
+    >>> [round(float(v) / 1e9, 3) for v in np.diag(k)]
+    [0.5, 1.0]
+    """
+    k1 = body.bearing_radial_stiffness_n_per_m
+    k2 = k1 * body.bearing_radial_stiffness_ratio
+    angle = math.radians(body.bearing_principal_axis_deg)
+    axes = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+    # Exact zeros off the diagonal at 0° and 90° (cos 90° is not exactly 0 in floating point).
+    axes[np.abs(axes) < 1e-15] = 0.0
+    zeta, m = body.bearing_damping_ratio, body.mass_kg
+    stiffness = axes @ np.diag([k1, k2]) @ axes.T
+    damping = axes @ np.diag([2 * zeta * math.sqrt(k1 * m), 2 * zeta * math.sqrt(k2 * m)]) @ axes.T
+    return stiffness, damping
+
+
+def off_line_dofs_needed(model: GearPairModel) -> bool:
+    """Whether y (perpendicular to the line of action) and rx can leave rest.
+
+    A frictionless spur mesh loads only along the line of action; y is excited by sliding
+    friction or by a support whose principal axes are oblique to the line of action
+    (stiffness coupling x–y); rx only by friction (its moment about the line of action).
+    """
+    if model.mesh.friction_coefficient > 0:
+        return True
+    for body in (model.pinion, model.gear):
+        if body.bearing_radial_stiffness_ratio != 1.0:
+            k, c = bearing_radial_matrices(body)
+            if k[0, 1] != 0.0 or c[0, 1] != 0.0:
+                return True
+    return False
 
 
 @dataclass
@@ -123,6 +171,12 @@ class SimulationResult:
     contact_length_m: np.ndarray
     bearing_force_n: dict[str, np.ndarray] = field(default_factory=dict)
     """Force on the housing along the line of action, ``"pinion"`` and ``"gear"``."""
+    bearing_force_off_line_n: dict[str, np.ndarray] = field(default_factory=dict)
+    """Force on the housing perpendicular to the line of action (+y: from the line of action
+    towards the pinion centre), ``"pinion"`` and ``"gear"``. Zero for a frictionless mesh on
+    supports that do not couple the two radial directions."""
+    friction_force_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Total sliding-friction force on the gear along +y (on the pinion: its opposite)."""
     integration_step_s: float = 0.0
     max_contact_iterations: int = 0
     unsettled_contact_steps: int = 0
@@ -157,12 +211,19 @@ def _assemble(
     and its moment about the centre is about z (torque) and y (tilt, from the axial
     position of the load): y, z and rx are never excited and stay exactly at rest, so
     they are dropped from the integration unless ``keep_unexcited`` (a test checks that
-    keeping them changes nothing).
+    keeping them changes nothing). Sliding friction (force along y, moment about x) or an
+    oblique anisotropic support excites y and rx: they are kept then
+    (:func:`off_line_dofs_needed`); z stays unexcited (a spur mesh has no axial force).
     """
     pin, gear, drive = model.pinion, model.gear, model.drive
     rb1, rb2 = geo.pinion_base_radius_m, geo.gear_base_radius_m
     full = model.dofs == "full"
-    wheel_dofs = ("x", "y", "z", "rx", "ry") if keep_unexcited else ("x", "ry")
+    if keep_unexcited:
+        wheel_dofs: tuple[str, ...] = ("x", "y", "z", "rx", "ry")
+    elif off_line_dofs_needed(model):
+        wheel_dofs = ("x", "y", "rx", "ry")
+    else:
+        wheel_dofs = ("x", "ry")
     n = 4 + (2 * len(wheel_dofs) if full else 0)
     mass = np.zeros(n)
     mass[:4] = [
@@ -221,8 +282,22 @@ def _assemble(
                     # Static bearing deflection: each wheel pushed away from the other.
                     x_init[i] = -sign * force / k
                     dof_map[kernel.D_PINION_X if w == 0 else kernel.D_GEAR_X] = i
+                elif name == "y":
+                    dof_map[kernel.D_PINION_Y if w == 0 else kernel.D_GEAR_Y] = i
+                elif name == "rx":
+                    dof_map[kernel.D_PINION_RX if w == 0 else kernel.D_GEAR_RX] = i
                 elif name == "ry":
                     v1[i] = sign  # tilt: a point at axial z moves z·ry along the line of action
+            if body.bearing_radial_stiffness_ratio != 1.0:
+                # Anisotropic support: the full radial block in (x, y), static deflection
+                # from its compliance (y is at rest only if the block is diagonal).
+                k_block, c_block = bearing_radial_matrices(body)
+                ix = base + wheel_dofs.index("x")
+                idx = [ix, base + wheel_dofs.index("y")] if "y" in wheel_dofs else [ix]
+                n_r = len(idx)
+                stiffness[np.ix_(idx, idx)] = k_block[:n_r, :n_r]
+                damping[np.ix_(idx, idx)] = c_block[:n_r, :n_r]
+                x_init[idx] = -sign * force * np.linalg.inv(k_block)[:n_r, 0]
     mesh_deflection = force / mean_mesh_stiffness_n_per_m(model)
     translation = float(v0[4:] @ x_init[4:]) if full else 0.0
     x_init[2] = -(mesh_deflection - translation) / rb2
@@ -389,6 +464,23 @@ def simulate(
         ipx, igx = asm.dof_map[kernel.D_PINION_X], asm.dof_map[kernel.D_GEAR_X]
         p[kernel.P_KB1], p[kernel.P_CB1] = asm.stiffness[ipx, ipx], asm.damping[ipx, ipx]
         p[kernel.P_KB2], p[kernel.P_CB2] = asm.stiffness[igx, igx], asm.damping[igx, igx]
+        ipy, igy = asm.dof_map[kernel.D_PINION_Y], asm.dof_map[kernel.D_GEAR_Y]
+        if ipy >= 0:
+            for ix, iy, (k_xy, c_xy, k_yy, c_yy) in (
+                (ipx, ipy, (kernel.P_KXY1, kernel.P_CXY1, kernel.P_KYY1, kernel.P_CYY1)),
+                (igx, igy, (kernel.P_KXY2, kernel.P_CXY2, kernel.P_KYY2, kernel.P_CYY2)),
+            ):
+                p[k_xy], p[c_xy] = asm.stiffness[ix, iy], asm.damping[ix, iy]
+                p[k_yy], p[c_yy] = asm.stiffness[iy, iy], asm.damping[iy, iy]
+    p[kernel.P_MU] = model.mesh.friction_coefficient
+    p[kernel.P_PITCH_POINT] = geo.pitch_point_m
+    p[kernel.P_T1T2] = geo.centre_distance_m * math.sin(geo.pressure_angle_rad)
+    p[kernel.P_KPROFILE] = {
+        "constant": kernel.KPROFILE_CONSTANT,
+        "linear": kernel.KPROFILE_LINEAR,
+        "parabolic": kernel.KPROFILE_PARABOLIC,
+    }[model.mesh.stiffness_profile]
+    p[kernel.P_KPROFILE_A] = model.mesh.stiffness_profile_variation
     p[kernel.P_LOAD] = op.load_torque_nm
     p[kernel.P_LOAD_FLUCT] = op.load_fluctuation_fraction
     p[kernel.P_LOAD_ORDER] = float(op.load_fluctuation_order)
@@ -435,7 +527,14 @@ def simulate(
             ]
     sos = _anti_alias_sos(acq.anti_alias_order, acq.anti_alias_cutoff_fraction * fs_out, fs_int)
     anti_alias = np.ascontiguousarray(sos[:, [0, 1, 2, 4, 5]] / sos[:, [3]])
-    sensor_source = np.array([0 if s.source == "pinion" else 1 for s in sensors], dtype=np.int64)
+    # 0/1: pinion/gear along the line of action; 2/3: the same perpendicular to it.
+    sensor_source = np.array(
+        [
+            (0 if s.source == "pinion" else 1) + (2 if s.direction == "off_line_of_action" else 0)
+            for s in sensors
+        ],
+        dtype=np.int64,
+    )
 
     duration = (n_warm + n_rec * acq.oversampling) * h
     max_speed = speed * (1 + abs(op.speed_drift_fraction) + abs(op.speed_fluctuation_fraction))
@@ -497,6 +596,11 @@ def simulate(
             "pinion": out[kernel.OUT_BEARING_PINION],
             "gear": out[kernel.OUT_BEARING_GEAR],
         },
+        bearing_force_off_line_n={
+            "pinion": out[kernel.OUT_BEARING_PINION_OFF],
+            "gear": out[kernel.OUT_BEARING_GEAR_OFF],
+        },
+        friction_force_n=out[kernel.OUT_FRICTION_FORCE],
         integration_step_s=h,
         max_contact_iterations=int(iterations),
         unsettled_contact_steps=int(unsettled),
