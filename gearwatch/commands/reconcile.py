@@ -37,6 +37,12 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--max-frequency-hz", type=float, default=None)
     parser.add_argument("--max-findings", type=int, default=4)
     parser.add_argument(
+        "--forward-oversampling",
+        type=int,
+        default=None,
+        help="integrator steps per sample of the fitting simulations (default: the model's)",
+    )
+    parser.add_argument(
         "--mechanisms",
         help="comma-separated catalogue names to try (default: every fitted plug-in)",
     )
@@ -122,6 +128,8 @@ def run(args: argparse.Namespace) -> int:
                 f"--mechanisms: unknown or not fitted: {', '.join(unknown)} "
                 f"(fitted: {', '.join(CATALOGUE)})"
             )
+    if args.forward_oversampling is not None and args.forward_oversampling < 1:
+        raise InputError("--forward-oversampling must be at least 1")
     if args.samples_per_mesh < 8:
         raise InputError("--samples-per-mesh must be at least 8")
     options = ReconcileOptions(
@@ -129,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
         max_frequency_hz=args.max_frequency_hz,
         mechanisms=mechanisms,
         max_findings=args.max_findings,
+        forward_oversampling=args.forward_oversampling,
     )
     try:
         result = reconcile(measured, model, reference=reference, options=options)

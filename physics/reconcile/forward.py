@@ -63,6 +63,8 @@ class ForwardSetup:
     sensor_index: int = 0
     warmup_s: float | None = None
     """Override of the model's warm-up (None: the model's)."""
+    oversampling: int | None = None
+    """Override of the model's integrator steps per output sample (None: the model's)."""
 
     @property
     def revs_per_hunt(self) -> int:
@@ -98,6 +100,8 @@ def channel_model(model: GearPairModel, setup: ForwardSetup) -> GearPairModel:
     acquisition = model.acquisition
     if setup.warmup_s is not None:
         acquisition = dataclasses.replace(acquisition, warmup_s=setup.warmup_s)
+    if setup.oversampling is not None:
+        acquisition = dataclasses.replace(acquisition, oversampling=setup.oversampling)
     tach = dataclasses.replace(model.tachometer, name="tach", shaft="pinion")
     return model.replace(
         operating=dataclasses.replace(model.operating, speed_rpm=setup.speed_rpm),

@@ -27,7 +27,7 @@ def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
 def campaign(tmp_path_factory: pytest.TempPathFactory, base_model: GearPairModel) -> Path:
     root = tmp_path_factory.mktemp("reconcile")
     truth = base_model.replace(
-        deviations=dataclasses.replace(base_model.deviations, spalls=[Spall(wheel="pinion", tooth=5, depth_um=10.0)])
+        deviations=dataclasses.replace(base_model.deviations, spalls=[Spall(wheel="pinion", tooth=5, depth_um=6.0)])
     )
     result = simulate(truth, seconds=5.0, seed=9)
     write_record(root / "rec.wav", result.channels, result.sample_rate_hz)
@@ -44,7 +44,7 @@ def test_reconcile_names_the_spall_and_writes_json_report_and_model(campaign: Pa
         "reconcile", str(campaign / "rec.wav"), "--campaign", str(campaign / "campaign.toml"),
         "--model", str(campaign / "model.toml"), "--json", str(out), "--report", str(campaign / "r.html"),
         "--write-model", str(campaign / "updated.toml"), "--samples-per-mesh", "32",
-        "--max-frequency-hz", "4000", "--mechanisms", "tooth_spall,tooth_crack,index_error", "--max-findings", "2",
+        "--max-frequency-hz", "4000", "--mechanisms", "tooth_spall,tooth_crack,index_error", "--max-findings", "2", "--forward-oversampling", "4",
     )
     assert proc.returncode == 0, proc.stderr
     data = json.loads(out.read_text())
@@ -56,7 +56,8 @@ def test_reconcile_names_the_spall_and_writes_json_report_and_model(campaign: Pa
     assert (campaign / "r.html").read_text().startswith("<!doctype html>")
     updated = model_from_toml((campaign / "updated.toml").read_text())
     assert [(s.wheel, s.tooth) for s in updated.deviations.spalls] == [("pinion", 5)]
-    assert updated.deviations.spalls[0].depth_um == pytest.approx(10.0, rel=0.15)
+    # Coarse fitting step (4 per sample vs 8 in the truth) and two findings at most: depth to 25 %.
+    assert updated.deviations.spalls[0].depth_um == pytest.approx(6.0, rel=0.25)
 
 
 def test_bad_input_is_one_line_not_a_traceback(campaign: Path) -> None:

@@ -42,6 +42,10 @@ def test_reference_relative_mode_explains_only_the_change(with_reference: Reconc
     names = [f["mechanism"] for f in data["findings"]]
     assert names[0] == "gear_eccentricity", data
     assert "structural_mode" not in names  # the housing mode is known model-form error
+    # ... found on the healthy reference and accepted into the base.
+    ref = data["reference"]["accepted_into_base"]
+    assert {f["mechanism"] for f in ref} == {"structural_mode"}, ref
+    assert ref[0]["parameters"]["frequency_hz"] == pytest.approx(HOUSING.frequency_hz, rel=0.02)
     found = data["findings"][0]["parameters"]
     assert found["amplitude_um"] == pytest.approx(4.0, rel=0.1)
     assert (found["phase_deg"] - 120.0 + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=10.0)
@@ -59,7 +63,10 @@ def test_json_contract_report_and_updated_model(with_reference: ReconciliationRe
     for m in data["mismatches"]:
         assert m["domain"] in {"order", "angle", "frequency"} and 0 <= m["share"] <= 1
     order = [m for m in data["mismatches"] if m["domain"] == "order"]
-    assert order and order[0]["class"] == "gear_sideband"
+    # Gear-shaft content: gear sidebands carry a large share (the rest sits at mesh ± one
+    # hunting bin, see docs/reconciliation.md).
+    gear = [m for m in order if m["class"] == "gear_sideband"]
+    assert gear and gear[0]["share"] >= 0.2, order
     f = data["findings"][0]
     assert {"mechanism", "wheel", "tooth", "parameters", "ci95", "evidence", "chi2_dof_after"} <= set(f)
     assert {"delta_bic", "p_value"} <= set(f["evidence"]) and f["evidence"]["delta_bic"] < -10
