@@ -170,19 +170,19 @@ def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
     >>> waveform_levels(ttl)
     (0.0, 5.0, 0.0)
     """
-    x = np.asarray(signal, dtype=np.float64).ravel()
+    x = np.asarray(signal).ravel()  # no float64 copy of a long (memory-mapped) waveform
     if x.size == 0:
         raise TachometerError("empty tachometer waveform")
     if x.size > LEVEL_SAMPLES:
         # 64 contiguous blocks at random starts: cache-friendly, and random phases cannot alias.
         block = LEVEL_SAMPLES // 64
         starts = np.random.default_rng(0).integers(0, x.size - block, 64)
-        blocks = x[starts[:, np.newaxis] + np.arange(block)]
+        blocks = np.asarray(x[starts[:, np.newaxis] + np.arange(block)], dtype=np.float64)
         values = blocks.ravel()
         steps = np.diff(blocks, axis=1).ravel()
     else:
-        values = x
-        steps = np.diff(x)
+        values = np.asarray(x, dtype=np.float64)
+        steps = np.diff(values)
     lo_extreme, hi_extreme = np.percentile(values, [0.1, 99.9])
     mid = 0.5 * (lo_extreme + hi_extreme)
     below = values[values < mid]
@@ -333,14 +333,11 @@ def pulse_times_from_waveform(
         raise TachometerError(f"hysteresis must be >= 0, got {hysteresis}")
 
     if threshold is None or hysteresis is None:
-        low_level, high_level, noise_rms = waveform_levels(x)
-        swing = high_level - low_level
-        if threshold is None:
-            threshold = 0.5 * (low_level + high_level)
-        if hysteresis is None:
-            hysteresis = min(max(8.0 * noise_rms, 0.4 * swing), 0.6 * swing)
-        if swing <= 0:
+        settings = schmitt_settings(x)
+        if settings is None:
             return np.empty(0)
+        threshold = settings[0] if threshold is None else threshold
+        hysteresis = settings[1] if hysteresis is None else hysteresis
     if edge == "falling":
         # A falling edge of x is a rising edge of -x.
         x = -x
@@ -351,6 +348,73 @@ def pulse_times_from_waveform(
     start, stop = _schmitt_flips(np.ascontiguousarray(x), float(lower), float(upper))
     crossings = _edge_crossings(x, start, stop, float(threshold))
     return np.asarray(crossings / float(sample_rate_hz), dtype=np.float64)
+
+
+def schmitt_settings(signal: ArrayLike) -> tuple[float, float] | None:
+    """Default ``(threshold, hysteresis)`` of :func:`pulse_times_from_waveform` for a waveform.
+
+    Threshold midway between the levels of :func:`waveform_levels`; hysteresis 8 × the noise
+    RMS, kept within 40–60 % of the swing. ``None`` for a waveform with no swing (no pulses).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> schmitt_settings(np.tile([0.0] * 30 + [5.0] * 10, 20))
+    (2.5, 2.0)
+    """
+    low_level, high_level, noise_rms = waveform_levels(signal)
+    swing = high_level - low_level
+    if swing <= 0:
+        return None
+    return 0.5 * (low_level + high_level), min(max(8.0 * noise_rms, 0.4 * swing), 0.6 * swing)
+
+
+def pulse_times_from_waveform_blocks(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    *,
+    block_samples: int,
+    overlap_samples: int = 1 << 16,
+    edge: Literal["rising", "falling"] = "rising",
+) -> FloatArray:
+    """:func:`pulse_times_from_waveform` on a long waveform, one block at a time.
+
+    Only one block is converted to float64 at a time, so a memory-mapped hour of waveform needs
+    a few blocks of memory. The Schmitt levels come from the whole waveform
+    (:func:`schmitt_settings`, which samples it). Block ``b`` keeps the edges whose time falls in
+    its own span; it looks ``overlap_samples`` back (so the trigger's state is settled, which
+    needs at least one pulse period) and as far ahead (so an edge straddling its end is
+    complete). The edges are then those of the whole waveform processed at once.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> n = np.arange(100_000)
+    >>> ttl = 5.0 * np.clip(((n % 1000) - 40.75) / 2 + 0.5, 0, 1)
+    >>> whole = pulse_times_from_waveform(ttl, 1000.0)
+    >>> bool(np.array_equal(pulse_times_from_waveform_blocks(ttl, 1000.0, block_samples=7000,
+    ...      overlap_samples=2500), whole))
+    True
+    """
+    x = np.asarray(signal).ravel()
+    if block_samples < 1 or overlap_samples < 0:
+        raise TachometerError("block_samples must be >= 1 and overlap_samples >= 0")
+    settings = schmitt_settings(x)
+    if settings is None:
+        return np.empty(0)
+    threshold, hysteresis = settings
+    times: list[FloatArray] = []
+    for start in range(0, x.size, block_samples):
+        stop = min(x.size, start + block_samples)
+        first = max(0, start - overlap_samples)
+        last = min(x.size, stop + overlap_samples)
+        block = np.asarray(x[first:last], dtype=np.float64)
+        edges = pulse_times_from_waveform(
+            block, sample_rate_hz, threshold=threshold, hysteresis=hysteresis, edge=edge
+        ) + first / float(sample_rate_hz)
+        keep = (edges >= start / sample_rate_hz) & (edges < stop / sample_rate_hz)
+        times.append(edges[keep])
+    return np.concatenate(times) if times else np.empty(0)
 
 
 # --------------------------------------------------------------------------- pulse repair

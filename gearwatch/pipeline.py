@@ -11,6 +11,7 @@ with a one-line reason; the caller stores the record as rejected.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,14 +20,20 @@ import numpy as np
 from dsp.angle import angle_resample
 from dsp.mci import moving_cepstrum_integral
 from dsp.metrics import crest_factor, envelope_variance, gear_metrics, kurtosis, peak, rms
-from dsp.tach import TachAnalysis, TachometerError, analyze_tachometer, pulse_times_from_waveform
+from dsp.tach import (
+    TachAnalysis,
+    TachometerError,
+    analyze_tachometer,
+    pulse_times_from_waveform,
+    pulse_times_from_waveform_blocks,
+)
 from dsp.teeth import (
     per_tooth_difference_stats,
     per_tooth_well_depth,
     tooth_pitch_angles_deg,
     worst_tooth,
 )
-from dsp.tsa import difference_signal, regular_signal, residual_signal, synchronous_average
+from dsp.tsa import difference_signal, regular_signal, residual_signal
 from gearwatch.errors import RecordFormatError, RecordRejected
 from gearwatch.results import (
     AnalysisParameters,
@@ -44,6 +51,10 @@ CLIPPING_MIN_RUN = 3
 """Consecutive samples at the channel's extreme value that count as a clipped stretch."""
 MAX_CLIPPED_FRACTION = 1e-3
 """A channel with more of its samples in clipped stretches than this is refused."""
+BLOCK_SAMPLES = 1 << 20
+"""Longer records are processed in blocks of about this many samples (≈ 52 s at 20 kHz, 21 s at
+50 kHz), so that an hour-long record needs a few blocks of memory (~0.1 GB), not several copies
+of itself. Shorter records are one block, processed whole."""
 
 
 @dataclass(frozen=True)
@@ -81,6 +92,7 @@ def analyze_record(
     *,
     input_sha256: str,
     baselines: dict[str, Baselines] | None = None,
+    block_samples: int = BLOCK_SAMPLES,
 ) -> RecordAnalysis:
     """Run the whole chain on one record; one :class:`ChannelAnalysis` per accelerometer channel.
 
@@ -96,6 +108,9 @@ def analyze_record(
         sha256 of the raw file (or of the raw frames) the record came from.
     baselines
         Running NA4/NB4 baselines per accelerometer channel name.
+    block_samples
+        Records longer than this are processed block by block (:data:`BLOCK_SAMPLES`); the
+        results agree with whole-record processing to rounding (tested).
 
     Raises
     ------
@@ -110,7 +125,7 @@ def analyze_record(
     if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
         raise RecordFormatError(f"{record.source or 'record'}: invalid sample rate {sample_rate_hz!r}")
 
-    tach = _analyze_tach(record, campaign, params, sample_rate_hz)
+    tach = _analyze_tach(record, campaign, params, sample_rate_hz, block_samples)
     rig = campaign.rig
     pinion_teeth, gear_teeth = rig.pinion_teeth, rig.gear_teeth
     has_teeth = bool(pinion_teeth and gear_teeth)
@@ -122,7 +137,7 @@ def analyze_record(
     channels = [
         _analyze_channel(
             name=channel.name,
-            signal=_checked_signal(record, channel.name),
+            signal=_checked_signal(record, channel.name, block_samples),
             sample_rate_hz=sample_rate_hz,
             tach=tach,
             campaign=campaign,
@@ -130,6 +145,7 @@ def analyze_record(
             has_teeth=has_teeth,
             pinion_per_tach_rev=pinion_per_tach_rev,
             baselines=baselines.get(channel.name, Baselines()),
+            block_samples=block_samples,
         )
         for channel in accelerometers
     ]
@@ -173,21 +189,33 @@ def _pinion_revs_per_tach_rev(campaign: Campaign) -> float:
 
 
 def _analyze_tach(
-    record: RecordData, campaign: Campaign, params: AnalysisParameters, sample_rate_hz: float
+    record: RecordData,
+    campaign: Campaign,
+    params: AnalysisParameters,
+    sample_rate_hz: float,
+    block_samples: int,
 ) -> TachAnalysis:
     config = campaign.tachometer
     if config is None:
         raise RecordRejected(
             "the manifest has no [tachometer]: synchronous averaging needs a once-per-revolution reference"
         )
-    raw = np.asarray(record.channel(config.channel), dtype=np.float64)
-    if not np.all(np.isfinite(raw)):
-        raise RecordRejected(f"tachometer channel {config.channel!r} contains NaN or inf samples")
+    raw = record.channel(config.channel)
     try:
-        if config.kind == "pulses":
-            pulse_times_s = pulse_times_from_waveform(raw, sample_rate_hz)
+        if config.kind == "pulses" and raw.size > block_samples:
+            # NaN/inf are refused block by block inside
+            pulse_times_s = pulse_times_from_waveform_blocks(
+                raw, sample_rate_hz, block_samples=block_samples
+            )
         else:
-            pulse_times_s = raw
+            raw = np.asarray(raw, dtype=np.float64)
+            if not np.all(np.isfinite(raw)):
+                raise RecordRejected(
+                    f"tachometer channel {config.channel!r} contains NaN or inf samples"
+                )
+            pulse_times_s = (
+                pulse_times_from_waveform(raw, sample_rate_hz) if config.kind == "pulses" else raw
+            )
         return analyze_tachometer(
             pulse_times_s,
             config.pulses_per_rev,
@@ -200,21 +228,69 @@ def _analyze_tach(
         raise RecordRejected(f"tachometer: {error}") from error
 
 
-def _checked_signal(record: RecordData, name: str) -> np.ndarray:
-    signal = np.asarray(record.channel(name), dtype=np.float64)
-    if signal.ndim != 1 or signal.size == 0:
+@dataclass(frozen=True)
+class _ScannedSignal:
+    """A channel that passed the checks, with its raw-signal metrics (one pass over blocks)."""
+
+    samples: np.ndarray
+    """The channel as read (possibly float32, possibly memory-mapped): convert per block."""
+    raw_metrics: dict[str, float]
+
+
+def _checked_signal(record: RecordData, name: str, block_samples: int) -> _ScannedSignal:
+    """Refuse NaN/inf and clipping; compute ``raw_rms`` and ``raw_kurtosis``; block by block.
+
+    Moments are accumulated about the first block's mean (numerically safe for a signal whose
+    mean does not wander by many standard deviations). A clipped run split by a block boundary
+    counts as two runs (at most a few samples per boundary of a 4-million-sample block).
+    """
+    samples = record.channel(name)
+    if samples.ndim != 1 or samples.size == 0:
         raise RecordFormatError(f"channel {name!r} must be a non-empty 1-D signal")
-    # max/min propagate NaN and show inf: one pass each instead of a full isfinite() scan
-    top, bottom = float(signal.max()), float(signal.min())
-    if not (np.isfinite(top) and np.isfinite(bottom)):
-        bad = int(np.count_nonzero(~np.isfinite(signal)))
-        raise RecordRejected(f"channel {name!r} contains {bad} NaN or inf samples")
-    clipped = clipped_fraction(signal, extremes=(bottom, top))
+    starts = range(0, samples.size, block_samples)
+    top, bottom = -np.inf, np.inf
+    shift: float | None = None
+    sums = np.zeros(4)
+    for start in starts:
+        block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
+        # max/min propagate NaN and show inf: one pass each instead of a full isfinite() scan
+        block_top, block_bottom = float(block.max()), float(block.min())
+        if not (np.isfinite(block_top) and np.isfinite(block_bottom)):
+            bad = sum(
+                int(np.count_nonzero(~np.isfinite(np.asarray(samples[i : i + block_samples]))))
+                for i in starts
+            )
+            raise RecordRejected(f"channel {name!r} contains {bad} NaN or inf samples")
+        top, bottom = max(top, block_top), min(bottom, block_bottom)
+        shift = float(block.mean()) if shift is None else shift
+        centred = block - shift
+        power = centred * centred
+        sums += (centred.sum(), power.sum(), (power * centred).sum(), (power * power).sum())
+    if len(starts) == 1:
+        clipped = clipped_fraction(block, extremes=(bottom, top))
+    else:
+        clipped = sum(
+            clipped_fraction(
+                np.asarray(samples[i : i + block_samples], dtype=np.float64),
+                extremes=(bottom, top),
+            )
+            * min(block_samples, samples.size - i)
+            for i in starts
+        ) / samples.size
     if clipped > MAX_CLIPPED_FRACTION:
         raise RecordRejected(
             f"channel {name!r} is clipped: {clipped:.2%} of samples sit at the sensor's extreme value"
         )
-    return signal
+    return _ScannedSignal(samples, _raw_moments_metrics(sums / samples.size))
+
+
+def _raw_moments_metrics(shifted_means: np.ndarray) -> dict[str, float]:
+    """``raw_rms`` (about the mean) and ``raw_kurtosis`` from E[y], E[y²], E[y³], E[y⁴] of y = x − c."""
+    d, m2_raw, m3_raw, m4_raw = (float(v) for v in shifted_means)
+    variance = max(m2_raw - d * d, 0.0)
+    fourth = m4_raw - 4 * d * m3_raw + 6 * d * d * m2_raw - 3 * d**4
+    kurt = fourth / variance**2 if variance > 0 and fourth > 0 else 0.0
+    return {"raw_rms": float(np.sqrt(variance)), "raw_kurtosis": float(kurt)}
 
 
 def clipped_fraction(
@@ -249,12 +325,6 @@ def clipped_fraction(
     return clipped / signal.size
 
 
-def _raw_signal_metrics(signal: np.ndarray) -> dict[str, float]:
-    """RMS and kurtosis of the raw time signal about its mean (what the averages remove too)."""
-    centred = signal - signal.mean()
-    return {"raw_rms": float(rms(centred)), "raw_kurtosis": float(kurtosis(centred))}
-
-
 def gear_revolutions_from_pinion_grid(pinion_revs: np.ndarray, gear_samples_per_rev: int) -> np.ndarray:
     """Regroup pinion-angle samples into gear revolutions, without resampling again.
 
@@ -270,10 +340,83 @@ def gear_revolutions_from_pinion_grid(pinion_revs: np.ndarray, gear_samples_per_
     return flat[: whole * gear_samples_per_rev].reshape(whole, gear_samples_per_rev)
 
 
+@dataclass(frozen=True)
+class _AngleAverages:
+    pinion_average: np.ndarray
+    pinion_revolutions: int
+    gear_average: np.ndarray
+    gear_revolutions: int
+
+
+def _angle_averages(
+    samples: np.ndarray,
+    sample_rate_hz: float,
+    pulse_times_s: np.ndarray,
+    pulses_per_rev: int,
+    pinion_spr: int,
+    gear_spr: int,
+    pinion_per_tach_rev: float,
+    hunting_tach_revs: int,
+    block_samples: int,
+) -> _AngleAverages:
+    """Pinion and gear synchronous averages, the record resampled one block at a time.
+
+    A record of at most ``block_samples`` (in tach revolutions' worth) is resampled whole.
+    A longer one is cut into blocks of whole hunting periods (``hunting_tach_revs`` tach
+    revolutions, after which both wheels are back at their starting teeth), so every block
+    holds whole pinion AND whole gear revolutions on the common grid. Each block is resampled
+    with one hunting period of context on each side — pulses for the phase model and signal for
+    the interpolator and anti-alias filter — and only its own revolutions are kept, so block
+    edges do not show; the sums of the revolutions are accumulated and the resampled record
+    never exists whole.
+    """
+    whole_tach_revs = (pulse_times_s.size - 1) // pulses_per_rev
+    seconds_per_tach_rev = (pulse_times_s[-1] - pulse_times_s[0]) / max(
+        (pulse_times_s.size - 1) / pulses_per_rev, 1e-12
+    )
+    samples_per_hunting = hunting_tach_revs * seconds_per_tach_rev * sample_rate_hz
+    block_tach_revs = hunting_tach_revs * max(1, int(block_samples // max(samples_per_hunting, 1)))
+    pinion_sum = np.zeros(pinion_spr)
+    gear_sum = np.zeros(gear_spr)
+    pinion_count = gear_count = 0
+    if whole_tach_revs <= block_tach_revs + hunting_tach_revs:
+        plan = [(0, whole_tach_revs, True)]
+    else:
+        edges = list(range(0, whole_tach_revs, block_tach_revs))
+        plan = [(r0, min(r0 + block_tach_revs, whole_tach_revs), r0 == edges[-1]) for r0 in edges]
+    for first_rev, end_rev, last in plan:
+        if len(plan) == 1:
+            block = np.asarray(samples, dtype=np.float64)
+            block_pulses, skip_pinion_revs = pulse_times_s, 0
+        else:
+            context_rev = max(0, first_rev - hunting_tach_revs)
+            first_pulse = context_rev * pulses_per_rev
+            last_pulse = min(pulse_times_s.size - 1, (end_rev + hunting_tach_revs) * pulses_per_rev)
+            start = max(0, int(np.floor(pulse_times_s[first_pulse] * sample_rate_hz)) - 16)
+            stop = min(samples.size, int(np.ceil(pulse_times_s[last_pulse] * sample_rate_hz)) + 16)
+            block = np.asarray(samples[start:stop], dtype=np.float64)
+            block_pulses = pulse_times_s[first_pulse : last_pulse + 1] - start / sample_rate_hz
+            skip_pinion_revs = round((first_rev - context_rev) * pinion_per_tach_rev)
+        revs = angle_resample(
+            block, sample_rate_hz, block_pulses, pulses_per_rev, pinion_spr,
+            shaft_ratio=pinion_per_tach_rev,
+        )
+        keep = None if last else round((end_rev - first_rev) * pinion_per_tach_rev)
+        revs = revs[skip_pinion_revs:][:keep]
+        pinion_sum += revs.sum(axis=0)
+        pinion_count += revs.shape[0]
+        gear_revs = gear_revolutions_from_pinion_grid(revs, gear_spr)
+        gear_sum += gear_revs.sum(axis=0)
+        gear_count += gear_revs.shape[0]
+    return _AngleAverages(
+        pinion_sum / max(pinion_count, 1), pinion_count, gear_sum / max(gear_count, 1), gear_count
+    )
+
+
 def _analyze_channel(
     *,
     name: str,
-    signal: np.ndarray,
+    signal: _ScannedSignal,
     sample_rate_hz: float,
     tach: TachAnalysis,
     campaign: Campaign,
@@ -281,6 +424,7 @@ def _analyze_channel(
     has_teeth: bool,
     pinion_per_tach_rev: float,
     baselines: Baselines,
+    block_samples: int,
 ) -> ChannelAnalysis:
     rig = campaign.rig
     ppr = tach.pulses_per_rev
@@ -289,27 +433,32 @@ def _analyze_channel(
         assert rig.pinion_teeth is not None and rig.gear_teeth is not None
         pinion_spr = rig.pinion_teeth * params.samples_per_mesh
         gear_spr = rig.gear_teeth * params.samples_per_mesh
+        # tach-shaft revolutions after which both wheels are back on their starting teeth
+        common = math.gcd(rig.pinion_teeth, rig.gear_teeth)
+        tach_on_pinion = campaign.tachometer is None or campaign.tachometer.shaft == "pinion"
+        hunting_tach_revs = (rig.gear_teeth if tach_on_pinion else rig.pinion_teeth) // common
     else:
         pinion_spr = gear_spr = params.samples_per_rev_without_teeth
-
+        hunting_tach_revs = 1
     try:
-        pinion_revs = angle_resample(
-            signal, sample_rate_hz, pulse_times_s, ppr, pinion_spr, shaft_ratio=pinion_per_tach_rev
+        angle = _angle_averages(
+            signal.samples, sample_rate_hz, pulse_times_s, ppr, pinion_spr, gear_spr,
+            pinion_per_tach_rev, hunting_tach_revs, block_samples,
         )
     except ValueError as error:  # e.g. pulse times outside the record: tach and signal disagree
         raise RecordRejected(f"channel {name!r}: cannot resample to shaft angle: {error}") from error
-    revolutions = int(pinion_revs.shape[-2])
+    revolutions = angle.pinion_revolutions
     if revolutions < params.min_revolutions:
         raise RecordRejected(
             f"only {revolutions} whole pinion revolutions (minimum {params.min_revolutions})"
         )
-    average = synchronous_average(pinion_revs)
+    average = angle.pinion_average
     curves: dict[str, np.ndarray] = {
         "pinion_average": average.astype(np.float32),
         "speed_rpm": (tach.rev_speed_rpm * pinion_per_tach_rev).astype(np.float32),
     }
 
-    raw_metrics = _raw_signal_metrics(signal)
+    raw_metrics = signal.raw_metrics
     if not has_teeth:
         metrics = {
             "rms": float(rms(average)),
@@ -330,8 +479,7 @@ def _analyze_channel(
 
     assert rig.pinion_teeth is not None and rig.gear_teeth is not None
     pinion_teeth = rig.pinion_teeth
-    gear_revs = gear_revolutions_from_pinion_grid(pinion_revs, gear_spr)
-    gear_average = synchronous_average(gear_revs)
+    gear_average = angle.gear_average
     regular = regular_signal(average, pinion_teeth, sidebands=params.difference_sidebands)
     residual = residual_signal(average, pinion_teeth)
     difference = difference_signal(average, pinion_teeth, sidebands=params.difference_sidebands)
@@ -378,7 +526,7 @@ def _analyze_channel(
     return ChannelAnalysis(
         channel=name,
         revolutions=revolutions,
-        gear_revolutions=int(gear_revs.shape[-2]),
+        gear_revolutions=angle.gear_revolutions,
         speed_rpm=float(tach.mean_rpm * pinion_per_tach_rev),
         samples_per_rev=pinion_spr,
         metrics=metrics,

@@ -14,10 +14,13 @@ import numpy as np
 
 MciForm = Literal["robust", "literal"]
 
-METRIC_NAMES = (
+AVERAGE_METRIC_NAMES = (
     "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
-    "raw_rms", "raw_kurtosis",
 )
+"""The classic gear metrics of the pinion synchronous average (:func:`dsp.metrics.gear_metrics`)."""
+RAW_METRIC_NAMES = ("raw_rms", "raw_kurtosis")
+"""Overall metrics of the raw time signal about its mean."""
+METRIC_NAMES = AVERAGE_METRIC_NAMES + RAW_METRIC_NAMES
 """Names of the whole-record metrics, in the order they are reported: the classic gear metrics of
 the pinion synchronous average, then ``raw_rms`` and ``raw_kurtosis`` of the raw time signal about
 its mean — the overall indicators that also see what the averages remove (non-synchronous faults

@@ -16,7 +16,7 @@ import scipy.signal
 import scipy.stats
 
 from dsp import metrics
-from gearwatch.results import METRIC_NAMES
+from gearwatch.results import AVERAGE_METRIC_NAMES
 
 SPIKE = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.0]
 ALTERNATING = [1.0, -1.0, 1.0, -1.0]
@@ -116,7 +116,7 @@ def test_huge_values_do_not_overflow() -> None:
 def test_constant_signals_give_zero_not_nan(value: float) -> None:
     x = np.full(64, value)
     result = metrics.gear_metrics(x, x, x, x, teeth=4)
-    assert set(result) == set(METRIC_NAMES)
+    assert set(result) == set(AVERAGE_METRIC_NAMES)
     for name in ("kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a"):
         assert result[name] == 0.0, name
     if value == 0.0:
@@ -319,7 +319,7 @@ def test_gear_metrics_keys_and_values() -> None:
         average, residual, difference, regular, 12, na4_baseline_variance=0.02,
         nb4_baseline_variance=0.01,
     )
-    assert tuple(result) == METRIC_NAMES
+    assert tuple(result) == AVERAGE_METRIC_NAMES
     assert result["rms"] == metrics.rms(average)
     assert result["peak"] == metrics.peak(average)
     assert result["crest"] == metrics.crest_factor(average)
@@ -343,7 +343,7 @@ def test_gear_metrics_batched() -> None:
     for name, value in result.items():
         assert isinstance(value, np.ndarray) and value.shape == (3,), name
     single = metrics.gear_metrics(*signals[:, 1], teeth=6)
-    for name in METRIC_NAMES:
+    for name in AVERAGE_METRIC_NAMES:
         assert result[name][1] == pytest.approx(single[name], rel=1e-13), name
 
 
