@@ -373,9 +373,9 @@ def integrate(
     iterations in a step, steps whose contact set did not settle).
 
     Sliding friction (``p[P_MU]`` > 0) is applied explicitly: the friction forces and moments
-    computed from the normal loads at the end of a step act during the next one (a lag of
-    one integration step, 1/oversampling of an output sample), which keeps the mesh solve a
-    symmetric rank-2 update.
+    of a step come from the normal loads at the Newmark predictor of its end state (contact
+    positions and sliding signs of the step itself), which keeps the mesh solve a symmetric
+    rank-2 update; the reported friction force is recomputed from the solved state.
     """
     n = mass_diag.shape[0]
     h = step_s
@@ -513,7 +513,23 @@ def integrate(
         if mu > 0.0:
             # Friction μ·s·N on each contact, perpendicular to the line of action (−y on the
             # pinion, +y on the gear for s > 0), with moments about the wheel axes (arms u and
-            # T1T2 − u) and, off the face centre, about the line of action (rx).
+            # T1T2 − u) and, off the face centre, about the line of action (rx). Explicit:
+            # the normal loads come from the Newmark predictor at the end of this step.
+            pp0 = 0.0
+            pp1 = 0.0
+            pw0 = 0.0
+            pw1 = 0.0
+            for i in range(n):
+                x_pred = x[i] + h * v[i] + 0.5 * h * h * acc[i]
+                v_pred = v[i] + h * acc[i]
+                pp0 += v0[i] * x_pred
+                pp1 += v1[i] * x_pred
+                pw0 += v0[i] * v_pred
+                pw1 += v1[i] * v_pred
+            _friction_sums(
+                n_seg, pp0, pp1, pw0, pw1, eta, seg_z0, seg_z1, seg_gap, seg_k, seg_u,
+                seg_slide, fric,
+            )  # fmt: skip
             r[i_p] -= mu * fric[1]
             r[i_g] += mu * (t1t2 * fric[0] - fric[1])
             if i_py >= 0:
