@@ -22,11 +22,14 @@ generators are separate processes:
   (C, one thread; ``apt-get install wrk``) if installed, else the asyncio client without pause.
   Its latency is bounded by Little's law: p50 ≈ clients / throughput.
 
-``server ms/req`` is the server process's CPU time (user + system, from ``/proc``) divided by
-the requests of the scenario: the cost of one answer, whatever the machine's load.
+``server CPU ms/req`` is the server process's CPU time (user + system, from ``/proc``) divided
+by the requests of the scenario: the cost of one answer, whatever the machine's load.
+``server p99 (own)`` is the bucket of the server's own duration histogram (``/metrics``, from
+the moment uvicorn hands the request to the app until the answer is written) that holds 99 %
+of the scenario's trend requests: what the clients see beyond it is queueing and scheduling.
 
     .venv/bin/python benchmarks/bench_trends.py [--clients 100] [--seconds 10] [--period 1.0]
-        [--backends sqlite,postgresql] [--workers 1] [--no-pin]
+        [--backends sqlite,postgresql] [--workers 1] [--no-pin] [--nice -10]
 """
 
 from __future__ import annotations
@@ -45,7 +48,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -137,8 +140,13 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+NICENESS = 0
+"""``--nice``: scheduling priority of the server and the load generator (negative: root)."""
+
+
 def pinned(command: list[str], cpu: str, pin: bool) -> list[str]:
-    return ["taskset", "-c", cpu, *command] if pin else command
+    command = ["taskset", "-c", cpu, *command] if pin else command
+    return ["nice", "-n", str(NICENESS), *command] if NICENESS else command
 
 
 def start_server(url: str, workers: int, pin: bool) -> tuple[subprocess.Popen[bytes], int]:
@@ -253,7 +261,11 @@ async def _clients(options: dict[str, Any]) -> dict[str, Any]:
             sent = loop.time()
             extra = f"If-None-Match: {etag}\r\n" if options["etag"] and etag else ""
             writer.write((request + extra + "\r\n").encode())
-            status, headers, body = await _read_response(reader)
+            try:
+                status, headers, body = await _read_response(reader)
+            except (OSError, asyncio.IncompleteReadError):
+                errors += 1  # the server closed the connection: this client stops
+                return
             done = loop.time()
             # Waiting for the previous answer past the scheduled instant counts; the client's
             # own wake-up lag does not.
@@ -293,9 +305,13 @@ def run_load_client(options: dict[str, Any], pin: bool) -> dict[str, Any]:
     return result
 
 
-def run_wrk(port: int, key: str, clients: int, seconds: float, pin: bool) -> dict[str, Any]:
+def run_wrk(
+    port: int, key: str, clients: int, seconds: float, pin: bool, gzip_wanted: bool
+) -> dict[str, Any]:
+    encoding = 'wrk.headers["Accept-Encoding"] = "gzip"' if gzip_wanted else ""
     script = f"""
 wrk.headers["Authorization"] = "Bearer {key}"
+{encoding}
 done = function(summary, latency, requests)
   local e = summary.errors
   io.write(string.format('{{"requests": %d, "duration_us": %d, "errors": %d, "bytes": %d, '
@@ -331,8 +347,10 @@ class Row:
     max_ms: float
     errors: int
     server_ms: float | None = None
+    """Server CPU time per request."""
+    server_p99: str = "-"
+    """The server's own p99 handling time, as the bucket of its duration histogram."""
     answer_kb: float | None = None
-    notes: list[str] = field(default_factory=list)
 
     @classmethod
     def of(cls, backend: str, scenario: str, clients: int, latencies_ms: list[float],
@@ -346,20 +364,71 @@ class Row:
         size = f"{self.answer_kb:.1f}" if self.answer_kb is not None else "-"
         rate = self.requests / self.wall_s if self.wall_s else 0.0
         return (
-            f"| {self.backend:<10} | {self.scenario:<11} | {self.clients:>7} | {self.requests:>8} "
+            f"| {self.backend:<10} | {self.scenario:<12} | {self.clients:>7} | {self.requests:>8} "
             f"| {rate:>7.0f} | {self.p50_ms:>7.1f} | {self.p95_ms:>7.1f} | {self.p99_ms:>7.1f} "
-            f"| {self.max_ms:>7.1f} | {self.errors:>6} | {server:>10} | {size:>7} |"
+            f"| {self.max_ms:>7.1f} | {self.errors:>6} | {server:>10} | {self.server_p99:>9} "
+            f"| {size:>7} |"
         )
 
 
 HEADER = (
-    "| backend    | scenario    | clients | requests |   req/s |  p50 ms |  p95 ms |  p99 ms "
-    "|  max ms | errors | server CPU |  answer |\n"
-    "|            |             |         |          |         |         |         |         "
-    "|         |        |  ms/req    |      KB |\n"
-    "|------------|-------------|---------|----------|---------|---------|---------|---------"
-    "|---------|--------|------------|---------|"
+    "| backend    | scenario     | clients | requests |   req/s |  p50 ms |  p95 ms |  p99 ms "
+    "|  max ms | errors | server CPU | server p99 |  answer |\n"
+    "|            |              |         |          |         |         |         |         "
+    "|         |        |  ms/req    | (own)   ms |      KB |\n"
+    "|------------|--------------|---------|----------|---------|---------|---------|---------"
+    "|---------|--------|------------|------------|---------|"
 )
+
+
+def trend_histogram(port: int, key: str) -> np.ndarray:
+    """Cumulative counts of the server's trend request durations per bucket (from /metrics)."""
+    import httpx
+
+    from service.metrics import DURATION_BUCKETS_S
+
+    text = httpx.get(f"http://127.0.0.1:{port}/metrics", timeout=30,
+                     headers={"Authorization": f"Bearer {key}"}).text  # fmt: skip
+    counts = np.zeros(len(DURATION_BUCKETS_S) + 1)
+    uppers = [repr(b) for b in DURATION_BUCKETS_S] + ["+Inf"]
+    for line in text.splitlines():
+        if line.startswith("gearwatch_http_request_duration_seconds_bucket{") and (
+            'route="/api/v1/rigs/{rig_id}/trends"' in line
+        ):
+            upper = line.split('le="')[1].split('"')[0]
+            counts[uppers.index(upper)] += float(line.rsplit(" ", 1)[1])
+    return counts
+
+
+def histogram_p99(counts: np.ndarray) -> str:
+    """"≤ X" (ms): the smallest bucket of cumulative ``counts`` holding 99 % of the requests."""
+    from service.metrics import DURATION_BUCKETS_S
+
+    if counts[-1] == 0:
+        return "-"
+    index = int(np.argmax(counts >= 0.99 * counts[-1]))
+    return f"≤ {DURATION_BUCKETS_S[index] * 1000:g}" if index < len(DURATION_BUCKETS_S) else "> 10 s"
+
+
+class Measured:
+    """Server CPU time and the server's duration histogram around one scenario."""
+
+    def __init__(self, process: subprocess.Popen[bytes], port: int, key: str) -> None:
+        self.process, self.port, self.key = process, port, key
+
+    def __enter__(self) -> Measured:
+        self.histogram = trend_histogram(self.port, self.key)
+        self.cpu_s = cpu_seconds(self.process.pid)
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.cpu_s = cpu_seconds(self.process.pid) - self.cpu_s
+        self.histogram = trend_histogram(self.port, self.key) - self.histogram
+
+    def fill(self, row: Row) -> Row:
+        row.server_ms = self.cpu_s * 1000 / max(row.requests, 1)
+        row.server_p99 = histogram_p99(self.histogram)
+        return row
 
 
 def cold(port: int, key: str) -> list[float]:
@@ -397,46 +466,44 @@ def bench_backend(backend: str, url: str, args: argparse.Namespace) -> list[Row]
     rows = [Row.of(backend, "build", 1, build, 0, sum(build) / 1000)]
     process, port = start_server(url, args.workers, args.pin)
     try:
-        before = cpu_seconds(process.pid)
-        cold_ms = cold(port, key)
-        row = Row.of(backend, "cold", 1, cold_ms, 0, sum(cold_ms) / 1000)
-        row.server_ms = (cpu_seconds(process.pid) - before) * 1000 / len(cold_ms)
-        rows.append(row)
+        with Measured(process, port, key) as measured:
+            cold_ms = cold(port, key)
+        rows.append(measured.fill(Row.of(backend, "cold", 1, cold_ms, 0, sum(cold_ms) / 1000)))
 
+        gzip_served = compresses(port, key)
         scenarios = [("poll", False, False), ("poll etag", True, False)]
-        if compresses(port, key):
+        if gzip_served:
             scenarios.append(("poll gzip", False, True))
         for name, etag, gzip_wanted in scenarios:
             options = {"port": port, "key": key, "clients": args.clients, "etag": etag,
                        "seconds": args.seconds, "period": args.period, "gzip": gzip_wanted}  # fmt: skip
-            before = cpu_seconds(process.pid)
-            result = run_load_client(options, args.pin)
-            used = cpu_seconds(process.pid) - before
+            with Measured(process, port, key) as measured:
+                result = run_load_client(options, args.pin)
             row = Row.of(backend, f"{name} {args.period:g}s", args.clients,
                          result["latencies_ms"], result["errors"], result["wall_s"])  # fmt: skip
-            row.server_ms = used * 1000 / max(row.requests, 1)
             row.answer_kb = result["body_bytes"] / max(row.requests, 1) / 1000
-            rows.append(row)
+            rows.append(measured.fill(row))
 
         saturate_s = min(args.seconds, 5.0)
-        before = cpu_seconds(process.pid)
         if shutil.which("wrk"):
-            found = run_wrk(port, key, args.clients, saturate_s, args.pin)
-            used = cpu_seconds(process.pid) - before
-            us = [found[k] / 1000 for k in ("p50_us", "p95_us", "p99_us", "max_us")]
-            row = Row(backend, "saturate", args.clients, found["requests"],
-                      found["duration_us"] / 1e6, *us, found["errors"])  # fmt: skip
-            row.answer_kb = found["bytes"] / max(found["requests"], 1) / 1000  # with headers
+            saturations = [("saturate", False)] + ([("saturate gz", True)] if gzip_served else [])
+            for name, gzip_wanted in saturations:
+                with Measured(process, port, key) as measured:
+                    found = run_wrk(port, key, args.clients, saturate_s, args.pin, gzip_wanted)
+                us = [found[k] / 1000 for k in ("p50_us", "p95_us", "p99_us", "max_us")]
+                row = Row(backend, name, args.clients, found["requests"],
+                          found["duration_us"] / 1e6, *us, found["errors"])  # fmt: skip
+                row.answer_kb = found["bytes"] / max(found["requests"], 1) / 1000  # + headers
+                rows.append(measured.fill(row))
         else:
             options = {"port": port, "key": key, "clients": args.clients, "etag": False,
                        "seconds": saturate_s, "period": 0.0, "gzip": False}  # fmt: skip
-            result = run_load_client(options, args.pin)
-            used = cpu_seconds(process.pid) - before
+            with Measured(process, port, key) as measured:
+                result = run_load_client(options, args.pin)
             row = Row.of(backend, "saturate", args.clients, result["latencies_ms"],
                          result["errors"], result["wall_s"])  # fmt: skip
             row.answer_kb = result["body_bytes"] / max(row.requests, 1) / 1000
-        row.server_ms = used * 1000 / max(row.requests, 1)
-        rows.append(row)
+            rows.append(measured.fill(row))
         return rows
     finally:
         process.terminate()
@@ -457,7 +524,8 @@ def environment(args: argparse.Namespace) -> str:
     )
     return (
         f"trend endpoint, {RECORDS} records × {TEETH} teeth, uvicorn workers: {args.workers}, "
-        f"{os.cpu_count()} CPUs, {pinning}; load average {load[0]:.1f} {load[1]:.1f} "
+        f"{os.cpu_count()} CPUs, {pinning}, niceness {args.nice}; "
+        f"load average {load[0]:.1f} {load[1]:.1f} "
         f"{load[2]:.1f}; httptools {have('httptools')}, uvloop {have('uvloop')}, "
         f"orjson {have('orjson')}; saturate by {'wrk' if shutil.which('wrk') else 'asyncio'}"
     )
@@ -475,8 +543,14 @@ def main() -> None:
     parser.add_argument("--backends", default="sqlite,postgresql")
     parser.add_argument("--no-pin", dest="pin", action="store_false",
                         help="do not pin the server and the load generator to CPUs 0 and 1")  # fmt: skip
+    parser.add_argument("--nice", type=int, default=0,
+                        help="run the server and the load generator at this niceness; -10 "
+                        "(root) keeps other jobs on a shared machine from adding their "
+                        "time slices to the latencies")  # fmt: skip
     args = parser.parse_args()
     args.pin = args.pin and bool(shutil.which("taskset")) and (os.cpu_count() or 1) >= 2
+    global NICENESS
+    NICENESS = args.nice
 
     import sqlalchemy as sa
 

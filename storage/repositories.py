@@ -597,57 +597,66 @@ class TrendRepository:
         channel: str | None = None,
         pinion_teeth: int | None = None,
     ) -> TrendMatrix:
-        """:meth:`trend` of one channel as a records × teeth matrix, from one query.
+        """:meth:`trend` of one channel as a records × teeth matrix.
 
         Without ``channel``, the first channel by name that has values. Columns are
         ``[tooth]``, else teeth 1…``pinion_teeth``, else the teeth found; records are in
-        ``taken_at`` order (then by id). No per-row objects: a year of 20 teeth is 7300 rows.
+        ``taken_at`` order (then by id).
+
+        A year of 20 teeth is 7300 cells: they are read in one query without timestamps or
+        sorting (both cost more than the rest), no per-row objects; the rig's records, in time
+        order from their index, give each record's row and time.
         """
         if indicator not in TOOTH_INDICATORS:
             raise InputError(
                 f"unknown tooth indicator {indicator!r} (known: {', '.join(TOOTH_INDICATORS)})"
             )
         ti = ToothIndicator
-        query = (
-            sa.select(ti.record_id, ti.taken_at, ti.channel_id, ti.tooth, ti.value)
-            .where(ti.rig_id == rig_id, ti.indicator == indicator, ti.is_current.is_(True))
-            .order_by(ti.taken_at, ti.record_id, ti.channel_id)
+        query = sa.select(ti.record_id, ti.channel_id, ti.tooth, ti.value).where(
+            ti.rig_id == rig_id, ti.indicator == indicator, ti.is_current.is_(True)
         )
         names = self.channel_names(rig_id)
         if tooth is not None:
             query = query.where(ti.tooth == tooth)
         if channel is not None:
             query = query.where(ti.channel_id.in_([k for k, n in names.items() if n == channel]))
-        rows = self.session.connection().execute(query).all()
+        cells = self.session.connection().execute(query).all()
         teeth = [tooth] if tooth is not None else list(range(1, (pinion_teeth or 0) + 1))
-        if not rows:
+        if not cells:
             return TrendMatrix(channel, teeth, [], [], np.empty((0, len(teeth))))
-        record_col, taken_col, channel_col, tooth_col, value_col = zip(*rows, strict=True)
+        record_col, channel_col, tooth_col, value_col = zip(*cells, strict=True)
         if channel is None:
             channel = min(names[c] for c in set(channel_col))
-        ids = [k for k, n in names.items() if n == channel]
-        keep = np.isin(np.asarray(channel_col), ids)
-        record_ids = np.asarray(record_col)[keep]
+        keep = np.isin(np.asarray(channel_col), [k for k, n in names.items() if n == channel])
+        cell_records = np.asarray(record_col)[keep]
         tooth_numbers = np.asarray(tooth_col)[keep]
         values = np.asarray(value_col, dtype=np.float64)[keep]
         if not teeth:
             teeth = [int(t) for t in np.unique(tooth_numbers)]
-        # Rows come in record order: a record's row is the rank of its first appearance.
-        unique_ids, first, inverse = np.unique(record_ids, return_index=True, return_inverse=True)
-        order = np.argsort(first)
-        rank = np.empty(len(order), dtype=np.intp)
-        rank[order] = np.arange(len(order))
+
+        times = self.session.execute(
+            sa.select(Record.id, Record.taken_at)
+            .where(Record.rig_id == rig_id)
+            .order_by(Record.taken_at, Record.id)
+        ).all()
+        ids_in_time_order = np.asarray([row[0] for row in times])
+        by_id = np.argsort(ids_in_time_order)
+        found = np.searchsorted(ids_in_time_order, cell_records, sorter=by_id)
+        time_rank = by_id[np.minimum(found, len(by_id) - 1)]
+        # A cell always has its record (same rig, foreign key); the check costs nothing.
+        known = ids_in_time_order[time_rank] == cell_records
+        ranks_used = np.unique(time_rank[known])
+        row = np.searchsorted(ranks_used, time_rank)
         columns = np.asarray(teeth)
-        column = np.clip(np.searchsorted(columns, tooth_numbers), 0, len(columns) - 1)
-        known = columns[column] == tooth_numbers
-        matrix = np.full((len(unique_ids), len(teeth)), np.nan)
-        matrix[rank[inverse.ravel()][known], column[known]] = values[known]
-        kept_rows = np.flatnonzero(keep)[first[order]]
+        column = np.minimum(np.searchsorted(columns, tooth_numbers), len(columns) - 1)
+        known &= columns[column] == tooth_numbers
+        matrix = np.full((len(ranks_used), len(teeth)), np.nan)
+        matrix[row[known], column[known]] = values[known]
         return TrendMatrix(
             channel,
             teeth,
-            [int(i) for i in unique_ids[order]],
-            [taken_col[i] for i in kept_rows],
+            [int(i) for i in ids_in_time_order[ranks_used]],
+            [times[i][1] for i in ranks_used],
             matrix,
         )
 

@@ -13,9 +13,10 @@ from starlette.concurrency import run_in_threadpool
 
 from service import schemas
 from service.convert import rig_by_name, rig_out, rule_out
-from service.deps import CurrentKey, DbSession, OperatorKey, SettingsDep
+from service.deps import CurrentKey, DbSession, OperatorKey
 from service.queries import ResponseCache
 from service.routers.common import RigName, errors
+from service.settings import Settings
 from storage.models import Rig
 
 router = APIRouter(prefix="/api/v1/rigs", tags=["rigs"])
@@ -58,7 +59,6 @@ async def trends(
     rig_id: RigName,
     request: Request,
     db: DbSession,
-    settings: SettingsDep,
     _caller: CurrentKey,
     indicator: Annotated[
         schemas.ToothIndicatorName, Query(description="Per-tooth indicator.")
@@ -75,6 +75,8 @@ async def trends(
     # gzip) is kept per (rig, indicator, tooth, channel) and served straight from memory while
     # the rig's data version, checked at most every ``trend_cache_seconds``, is unchanged: a
     # dashboard's poll then costs no database query, no thread and no serialization here.
+    # (Settings read directly: a synchronous dependency would cost a thread hop.)
+    settings: Settings = request.app.state.settings
     cache: ResponseCache[CachedTrend] = request.app.state.trend_cache
     key = (rig_id, indicator, tooth, channel)
     version = cache.group_version(rig_id, settings.trend_cache_seconds)
