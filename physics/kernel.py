@@ -54,6 +54,11 @@ N_DOF_MAP = 10
 
 MAX_PAIRS = 6
 
+# Rows of the contact-line pieces array: face interval, gap, stiffness per length, entry
+# weight, the pair's contact position and sliding sign (one array: fewer call arguments).
+S_Z0, S_Z1, S_GAP, S_K, S_W, S_U, S_SLIDE = range(7)
+N_SEG_ROWS = 7
+
 
 @njit(cache=True, fastmath=True, inline="always")
 def _overlap(lo: float, hi: float, a: float, b: float) -> float:
@@ -118,19 +123,14 @@ def _build_segments(
     defect_z1: np.ndarray,
     defect_depth: np.ndarray,
     ecc_m: float,
-    seg_z0: np.ndarray,
-    seg_z1: np.ndarray,
-    seg_gap: np.ndarray,
-    seg_k: np.ndarray,
-    seg_w: np.ndarray,
-    seg_u: np.ndarray,
-    seg_slide: np.ndarray,
+    seg: np.ndarray,
     breaks: np.ndarray,
+    friction: bool,
 ) -> int:
     """Cut the contact lines into pieces of constant deviation; return how many.
 
-    Each piece also gets its pair's contact position ``seg_u`` and the sign of the sliding
-    velocity ``seg_slide`` (−1 before the pitch point, +1 after, averaged over the step's
+    Each piece also gets its pair's contact position ``seg[S_U]`` and the sign of the sliding
+    velocity ``seg[S_SLIDE]`` (−1 before the pitch point, +1 after, averaged over the step's
     travel so that the reversal is not quantised to the step)."""
     pb, u0, start, end = p[P_PB], p[P_U0], p[P_START], p[P_END]
     half_face = p[P_HALF_FACE]
@@ -158,7 +158,9 @@ def _build_segments(
         k_line = p[P_KLEN] * kfac1[tooth1] * kfac2[tooth2] * weight
         if p[P_KPROFILE] != KPROFILE_CONSTANT:
             k_line *= _profile_factor(u, p)
-        slide = 2.0 * _window_fraction(u, travel_m, p[P_PITCH_POINT], 1e300) - 1.0
+        slide = 0.0
+        if friction:
+            slide = 2.0 * _window_fraction(u, travel_m, p[P_PITCH_POINT], 1e300) - 1.0
         n_break = 2
         breaks[0] = -half_face
         breaks[1] = half_face
@@ -191,13 +193,14 @@ def _build_segments(
                     continue
                 frac = _window_fraction(u, travel_m, defect_u0[d], defect_u1[d])
                 deviation += defect_depth[d] * frac
-            seg_z0[n_seg] = za
-            seg_z1[n_seg] = zb
-            seg_gap[n_seg] = ecc_m - deviation
-            seg_k[n_seg] = k_line
-            seg_w[n_seg] = weight
-            seg_u[n_seg] = u
-            seg_slide[n_seg] = slide
+            seg[S_Z0, n_seg] = za
+            seg[S_Z1, n_seg] = zb
+            seg[S_GAP, n_seg] = ecc_m - deviation
+            seg[S_K, n_seg] = k_line
+            seg[S_W, n_seg] = weight
+            if friction:
+                seg[S_U, n_seg] = u
+                seg[S_SLIDE, n_seg] = slide
             n_seg += 1
     return n_seg
 
@@ -207,11 +210,7 @@ def _contact_sums(
     n_seg: int,
     p0: float,
     p1: float,
-    seg_z0: np.ndarray,
-    seg_z1: np.ndarray,
-    seg_gap: np.ndarray,
-    seg_k: np.ndarray,
-    seg_w: np.ndarray,
+    seg: np.ndarray,
     sums: np.ndarray,
 ) -> None:
     """Integrals of k, k z, k z², k g, k g z and the loaded length over the loaded parts.
@@ -224,8 +223,8 @@ def _contact_sums(
     k0 = k1 = k2 = g0 = g1 = length = 0.0
     margin = 1e300
     for i in range(n_seg):
-        za, zb = seg_z0[i], seg_z1[i]
-        c = p0 + seg_gap[i]
+        za, zb = seg[S_Z0, i], seg[S_Z1, i]
+        c = p0 + seg[S_GAP, i]
         da = c + p1 * za
         db = c + p1 * zb
         if (da > 0.0) == (db > 0.0):
@@ -243,16 +242,16 @@ def _contact_sums(
                 zb = min(zb, z_zero)
             if zb <= za:
                 continue
-        k = seg_k[i]
+        k = seg[S_K, i]
         d1 = zb - za
         d2 = 0.5 * (zb * zb - za * za)
         d3 = (zb * zb * zb - za * za * za) / 3.0
         k0 += k * d1
         k1 += k * d2
         k2 += k * d3
-        g0 += k * seg_gap[i] * d1
-        g1 += k * seg_gap[i] * d2
-        length += seg_w[i] * d1
+        g0 += k * seg[S_GAP, i] * d1
+        g1 += k * seg[S_GAP, i] * d2
+        length += seg[S_W, i] * d1
     sums[0] = k0
     sums[1] = k1
     sums[2] = k2
@@ -270,12 +269,7 @@ def _friction_sums(
     w0: float,
     w1: float,
     eta: float,
-    seg_z0: np.ndarray,
-    seg_z1: np.ndarray,
-    seg_gap: np.ndarray,
-    seg_k: np.ndarray,
-    seg_u: np.ndarray,
-    seg_slide: np.ndarray,
+    seg: np.ndarray,
     sums: np.ndarray,
 ) -> None:
     """Sliding-sign-weighted normal loads: Σ s·N, Σ s·u·N and Σ s·∫z dN over the loaded parts.
@@ -285,8 +279,8 @@ def _friction_sums(
     """
     n_s = n_su = m_s = 0.0
     for i in range(n_seg):
-        za, zb = seg_z0[i], seg_z1[i]
-        c = p0 + seg_gap[i]
+        za, zb = seg[S_Z0, i], seg[S_Z1, i]
+        c = p0 + seg[S_GAP, i]
         if abs(p1) < 1e-300:
             if c <= 0.0:
                 continue
@@ -298,7 +292,7 @@ def _friction_sums(
                 zb = min(zb, z_zero)
             if zb <= za:
                 continue
-        k = seg_k[i] * seg_slide[i]
+        k = seg[S_K, i] * seg[S_SLIDE, i]
         d1 = zb - za
         d2 = 0.5 * (zb * zb - za * za)
         d3 = (zb * zb * zb - za * za * za) / 3.0
@@ -306,7 +300,7 @@ def _friction_sums(
         slope = p1 + eta * w1
         load = k * (constant * d1 + slope * d2)
         n_s += load
-        n_su += seg_u[i] * load
+        n_su += seg[S_U, i] * load
         m_s += k * (constant * d2 + slope * d3)
     sums[0] = n_s
     sums[1] = n_su
@@ -443,13 +437,7 @@ def integrate(
         utw[1, 1] += v1[i] * w_mat[i, 1]
 
     max_seg = MAX_PAIRS * (2 * defect_wheel.shape[0] + 1)
-    seg_z0 = np.zeros(max_seg)
-    seg_z1 = np.zeros(max_seg)
-    seg_gap = np.zeros(max_seg)
-    seg_k = np.zeros(max_seg)
-    seg_w = np.zeros(max_seg)
-    seg_u = np.zeros(max_seg)
-    seg_slide = np.zeros(max_seg)
+    seg = np.zeros((N_SEG_ROWS, max_seg))
     fric = np.zeros(3)
     breaks = np.zeros(2 * defect_wheel.shape[0] + 2)
     sums = np.zeros(7)
@@ -491,8 +479,7 @@ def integrate(
         n_seg = _build_segments(
             s_m, travel, p, pinion_teeth, gear_teeth, pitch1, pitch2, kfac1, kfac2,
             defect_wheel, defect_tooth, defect_u0, defect_u1, defect_z0, defect_z1,
-            defect_depth, ecc1 - ecc2, seg_z0, seg_z1, seg_gap, seg_k, seg_w, seg_u, seg_slide,
-            breaks,
+            defect_depth, ecc1 - ecc2, seg, breaks, mu > 0.0,
         )  # fmt: skip
 
         # Constant part of the right-hand side.
@@ -527,8 +514,7 @@ def integrate(
                 pw0 += v0[i] * v_pred
                 pw1 += v1[i] * v_pred
             _friction_sums(
-                n_seg, pp0, pp1, pw0, pw1, eta, seg_z0, seg_z1, seg_gap, seg_k, seg_u,
-                seg_slide, fric,
+                n_seg, pp0, pp1, pw0, pw1, eta, seg, fric,
             )  # fmt: skip
             r[i_p] -= mu * fric[1]
             r[i_g] += mu * (t1t2 * fric[0] - fric[1])
@@ -570,7 +556,7 @@ def integrate(
                 # δ moved less than the margin: the contact set cannot have changed.
                 settled = True
                 break
-            _contact_sums(n_seg, p0e, p1e, seg_z0, seg_z1, seg_gap, seg_k, seg_w, sums)
+            _contact_sums(n_seg, p0e, p1e, seg, sums)
             if it > 0:
                 same = True
                 for k in range(5):
@@ -628,8 +614,7 @@ def integrate(
         friction_force = 0.0
         if mu > 0.0:
             _friction_sums(
-                n_seg, p0e, p1e, w0, w1, eta, seg_z0, seg_z1, seg_gap, seg_k, seg_u,
-                seg_slide, fric,
+                n_seg, p0e, p1e, w0, w1, eta, seg, fric,
             )  # fmt: skip
             friction_force = mu * fric[0]
         if i_px >= 0:
