@@ -65,6 +65,8 @@ INDICATOR_DIRECTIONS: dict[str, Direction] = {
     "m6a": "higher_is_worse",
     "m8a": "higher_is_worse",
     "er": "higher_is_worse",
+    "raw_rms": "higher_is_worse",
+    "raw_kurtosis": "higher_is_worse",
 }
 """Which way is worse for each indicator gearwatch computes."""
 
