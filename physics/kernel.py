@@ -15,6 +15,11 @@ is found by iterating until it no longer changes; contact intervals on a line ar
 (δ is linear in z), and pair entry/exit and spall edges are averaged over the step's
 travel so that events are not quantised to the step.
 
+Sliding friction (Coulomb, μ·s·N per contact line across the line of action, s the sign of
+the sliding velocity, which reverses at the pitch point) enters F(t) explicitly from the
+normal loads at the Newmark predictor; a stiffness-per-length profile along the path of
+contact scales each line's k; an anisotropic support is a full 2×2 radial block in K and C.
+
 This is an internal module: :mod:`physics.simulator` assembles the arrays.
 """
 
