@@ -212,7 +212,8 @@ def process_file(
             if rejected_with is not None and _same_parameters(rejected_with, expected):
                 return JobResult(record.id, sha256, "unchanged", record.status, record.reason)
         attempt = _analyze(session, Path(record.raw_location), sha256, record.taken_at,
-                           campaign, params, analyze, stored_campaign.id)
+                           campaign, params, analyze, stored_campaign.id,
+                           display_name=record.file_name)
         return _store(session, record, attempt, campaign, params)
 
     if taken_at is None:
@@ -224,7 +225,8 @@ def process_file(
     # Analyse first, write after: the write transaction (a database-wide lock on SQLite)
     # stays short and never spans the signal processing.
     attempt = _analyze(session, kept, sha256, provisional, campaign, params, analyze,
-                       stored_campaign.id, time_from_metadata=taken_at is None)
+                       stored_campaign.id, time_from_metadata=taken_at is None,
+                       display_name=file_name or path.name)
     record = records.add(
         stored_campaign,
         sha256=sha256,
@@ -288,8 +290,12 @@ def _analyze(
     campaign_id: int,
     *,
     time_from_metadata: bool = False,
+    display_name: str | None = None,
 ) -> _Attempt:
-    """Read the kept raw file and run the chain; never raises for bad input or a bug."""
+    """Read the kept raw file and run the chain; never raises for bad input or a bug.
+
+    Reasons name the file as the operator knows it (``display_name``), not its content-addressed
+    copy in the raw store."""
     from ingest.sources import read_record
 
     attempt = _Attempt(taken_at)
@@ -305,6 +311,8 @@ def _analyze(
         logger.exception("internal error while analysing %s", raw_location)
         attempt.reason = f"internal error: {type(error).__name__}: {_one_line(error)}"
         attempt.error, attempt.internal = type(error).__name__, True
+    if display_name and attempt.reason:
+        attempt.reason = attempt.reason.replace(str(raw_location), display_name)
     return attempt
 
 
@@ -379,5 +387,6 @@ def reprocess_record(
         return JobResult(record.id, record.sha256, "unchanged", record.status,
                          result_id=_current_id(records, record.id))
     attempt = _analyze(session, Path(record.raw_location), record.sha256, record.taken_at,
-                       campaign, params, analyzer or pipeline_analyzer, record.campaign_id)
+                       campaign, params, analyzer or pipeline_analyzer, record.campaign_id,
+                       display_name=record.file_name)
     return _store(session, record, attempt, campaign, params)

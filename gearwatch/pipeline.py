@@ -51,6 +51,8 @@ CLIPPING_MIN_RUN = 3
 """Consecutive samples at the channel's extreme value that count as a clipped stretch."""
 MAX_CLIPPED_FRACTION = 1e-3
 """A channel with more of its samples in clipped stretches than this is refused."""
+SAMPLE_RATE_TOLERANCE = 1e-3
+"""Relative difference between a record's own sample rate and the manifest's that is refused."""
 BLOCK_SAMPLES = 1 << 20
 """Longer records are processed in blocks of about this many samples (≈ 52 s at 20 kHz, 21 s at
 50 kHz), so that an hour-long record needs a few blocks of memory (~0.1 GB), not several copies
@@ -124,6 +126,14 @@ def analyze_record(
     sample_rate_hz = float(record.sample_rate_hz)
     if not np.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
         raise RecordFormatError(f"{record.source or 'record'}: invalid sample rate {sample_rate_hz!r}")
+    declared = campaign.sample_rate_hz
+    if declared and abs(sample_rate_hz - declared) > SAMPLE_RATE_TOLERANCE * declared:
+        # A file carries its own rate; one that disagrees with the rig's DAQ set-up is a wrong
+        # rate or a wrong manifest, and either would scale every speed and frequency silently.
+        raise RecordRejected(
+            f"sample rate {sample_rate_hz:g} Hz differs from the manifest's "
+            f"[acquisition] sample_rate_hz = {declared:g} Hz"
+        )
 
     tach = _analyze_tach(record, campaign, params, sample_rate_hz, block_samples)
     rig = campaign.rig

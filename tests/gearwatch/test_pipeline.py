@@ -226,9 +226,16 @@ def test_no_tach_pulses_are_rejected(spalled: SyntheticRecord) -> None:
 
 def test_wrong_sample_rate_is_rejected_as_speed_out_of_range(spalled: SyntheticRecord) -> None:
     record = dataclasses.replace(record_of(spalled), sample_rate_hz=spalled.sample_rate_hz * 1e3)
+    campaign = dataclasses.replace(campaign_for(spalled), sample_rate_hz=None)
     params = AnalysisParameters(max_speed_rpm=20_000.0)
-    with pytest.raises(RecordRejected):
-        analyze_record(record, campaign_for(spalled), params, input_sha256="0" * 64)
+    with pytest.raises(RecordRejected, match="speed"):
+        analyze_record(record, campaign, params, input_sha256="0" * 64)
+
+
+def test_sample_rate_that_disagrees_with_the_manifest_is_rejected(spalled: SyntheticRecord) -> None:
+    record = dataclasses.replace(record_of(spalled), sample_rate_hz=25_600.0)
+    with pytest.raises(RecordRejected, match="25600 Hz differs from the manifest's"):
+        analyze_record(record, campaign_for(spalled), input_sha256="0" * 64)
 
 
 def test_missing_channel_is_a_format_error(spalled: SyntheticRecord) -> None:
