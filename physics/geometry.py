@@ -46,6 +46,13 @@ class SpurGeometry:
     """Pitch point, from T1."""
 
     @property
+    def line_of_action_length_m(self) -> float:
+        """T1T2: line of action between the two base-circle tangency points, a·sin α.
+
+        The friction arms at a contact u (from T1) are u (pinion) and T1T2 − u (gear)."""
+        return self.centre_distance_m * math.sin(self.pressure_angle_rad)
+
+    @property
     def path_length_m(self) -> float:
         return self.path_end_m - self.path_start_m
 

@@ -151,7 +151,7 @@ def quasi_static_input_torque_nm(model: GearPairModel, n_positions: int = 256) -
     geo = model_geometry(model)
     mu = model.mesh.friction_coefficient
     rb1, rb2, pb = geo.pinion_base_radius_m, geo.gear_base_radius_m, geo.base_pitch_m
-    t1t2 = geo.centre_distance_m * math.sin(geo.pressure_angle_rad)
+    t1t2 = geo.line_of_action_length_m
     first = geo.path_start_m + pb * (np.arange(n_positions) + 0.5) / n_positions
     u = first[:, None] + pb * np.arange(math.ceil(geo.contact_ratio) + 1)[None, :]
     share = np.where(u <= geo.path_end_m, stiffness_profile_factor(model, u), 0.0)
@@ -530,7 +530,7 @@ def simulate(
                 p[k_yy], p[c_yy] = asm.stiffness[iy, iy], asm.damping[iy, iy]
     p[kernel.P_MU] = model.mesh.friction_coefficient
     p[kernel.P_PITCH_POINT] = geo.pitch_point_m
-    p[kernel.P_T1T2] = geo.centre_distance_m * math.sin(geo.pressure_angle_rad)
+    p[kernel.P_T1T2] = geo.line_of_action_length_m
     p[kernel.P_KPROFILE] = {
         "constant": kernel.KPROFILE_CONSTANT,
         "linear": kernel.KPROFILE_LINEAR,
