@@ -31,6 +31,7 @@ Conventions
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -524,3 +525,47 @@ def gear_metrics(
         "m8a": m8a(difference),
         "er": energy_ratio(difference, regular),
     }
+
+
+# Reassociation lets the sums vectorise; NaN and inf keep their meaning (no "nnan"/"ninf").
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _extremes_and_moment_sums(
+    x: np.ndarray, shift: float
+) -> tuple[float, float, float, float, float, float]:
+    top, bottom = -np.inf, np.inf
+    s1 = s2 = s3 = s4 = 0.0
+    nan_seen = False
+    for value in x:
+        nan_seen |= value != value
+        top = max(top, value)
+        bottom = min(bottom, value)
+        y = value - shift
+        y2 = y * y
+        s1 += y
+        s2 += y2
+        s3 += y2 * y
+        s4 += y2 * y2
+    if nan_seen:
+        top = bottom = np.nan
+    return top, bottom, s1, s2, s3, s4
+
+
+def extremes_and_moment_sums(
+    x: ArrayLike, shift: float = 0.0
+) -> tuple[float, float, np.ndarray]:
+    """Max, min and ``[Σ(x−c), Σ(x−c)², Σ(x−c)³, Σ(x−c)⁴]`` of a 1-D signal in one pass.
+
+    The building block of block-wise raw-signal statistics (RMS and kurtosis about the mean of a
+    long record, read one block at a time). ``c`` (``shift``) should be close to the mean — e.g.
+    the first block's — so the sums do not cancel. A NaN anywhere makes max and min NaN; an inf
+    shows as an infinite extreme.
+
+    Examples
+    --------
+    >>> top, bottom, sums = extremes_and_moment_sums(np.array([1.0, -1.0, 1.0, -1.0]))
+    >>> top, bottom, sums.tolist()
+    (1.0, -1.0, [0.0, 4.0, 0.0, 4.0])
+    """
+    values = np.ascontiguousarray(x, dtype=np.float64).ravel()
+    top, bottom, s1, s2, s3, s4 = _extremes_and_moment_sums(values, float(shift))
+    return float(top), float(bottom), np.array([s1, s2, s3, s4])

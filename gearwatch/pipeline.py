@@ -19,7 +19,15 @@ import numpy as np
 
 from dsp.angle import angle_resample
 from dsp.mci import moving_cepstrum_integral
-from dsp.metrics import crest_factor, envelope_variance, gear_metrics, kurtosis, peak, rms
+from dsp.metrics import (
+    crest_factor,
+    envelope_variance,
+    extremes_and_moment_sums,
+    gear_metrics,
+    kurtosis,
+    peak,
+    rms,
+)
 from dsp.tach import (
     TachAnalysis,
     TachometerError,
@@ -250,8 +258,9 @@ class _ScannedSignal:
 def _checked_signal(record: RecordData, name: str, block_samples: int) -> _ScannedSignal:
     """Refuse NaN/inf and clipping; compute ``raw_rms`` and ``raw_kurtosis``; block by block.
 
-    Moments are accumulated about the first block's mean (numerically safe for a signal whose
-    mean does not wander by many standard deviations). A clipped run split by a block boundary
+    Moments are accumulated in one pass per block (:func:`dsp.metrics.extremes_and_moment_sums`)
+    about the mean of the first samples (numerically safe for a signal whose mean does not
+    wander by many standard deviations). A clipped run split by a block boundary
     counts as two runs (at most a few samples per boundary of a 4-million-sample block).
     """
     samples = record.channel(name)
@@ -259,12 +268,12 @@ def _checked_signal(record: RecordData, name: str, block_samples: int) -> _Scann
         raise RecordFormatError(f"channel {name!r} must be a non-empty 1-D signal")
     starts = range(0, samples.size, block_samples)
     top, bottom = -np.inf, np.inf
-    shift: float | None = None
+    # moments about a value near the mean, so that the sums do not cancel
+    shift = float(np.mean(np.asarray(samples[:1024], dtype=np.float64)))
     sums = np.zeros(4)
     for start in starts:
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
-        # max/min propagate NaN and show inf: one pass each instead of a full isfinite() scan
-        block_top, block_bottom = float(block.max()), float(block.min())
+        block_top, block_bottom, block_sums = extremes_and_moment_sums(block, shift)
         if not (np.isfinite(block_top) and np.isfinite(block_bottom)):
             bad = sum(
                 int(np.count_nonzero(~np.isfinite(np.asarray(samples[i : i + block_samples]))))
@@ -272,10 +281,7 @@ def _checked_signal(record: RecordData, name: str, block_samples: int) -> _Scann
             )
             raise RecordRejected(f"channel {name!r} contains {bad} NaN or inf samples")
         top, bottom = max(top, block_top), min(bottom, block_bottom)
-        shift = float(block.mean()) if shift is None else shift
-        centred = block - shift
-        power = centred * centred
-        sums += (centred.sum(), power.sum(), (power * centred).sum(), (power * power).sum())
+        sums += block_sums
     if len(starts) == 1:
         clipped = clipped_fraction(block, extremes=(bottom, top))
     else:

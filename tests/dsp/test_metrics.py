@@ -395,3 +395,25 @@ def test_spall_raises_the_difference_signal_metrics_on_a_synthetic_campaign() ->
     assert spalled["er"] > 1.5 * max(day["er"] for day in healthy_days)
     # the TSA's own statistics barely move: the mesh dominates them
     assert spalled["kurtosis"] == pytest.approx(healthy_days[0]["kurtosis"], rel=0.02)
+
+
+# ------------------------------------------------------------------ one-pass raw-signal statistics
+
+
+@pytest.mark.parametrize("shift", [0.0, 3.0, -250.0])
+def test_extremes_and_moment_sums_against_numpy(shift: float) -> None:
+    x = 250.0 + np.random.default_rng(5).standard_normal(10_001) ** 3
+    top, bottom, sums = metrics.extremes_and_moment_sums(x, shift)
+    assert (top, bottom) == (x.max(), x.min())
+    y = x - shift
+    np.testing.assert_allclose(sums, [y.sum(), (y**2).sum(), (y**3).sum(), (y**4).sum()], rtol=1e-9)
+
+
+def test_extremes_and_moment_sums_flag_nan_and_inf() -> None:
+    x = np.zeros(100)
+    x[37] = np.nan
+    top, bottom, _ = metrics.extremes_and_moment_sums(x)
+    assert np.isnan(top) and np.isnan(bottom)
+    x[37] = -np.inf
+    top, bottom, _ = metrics.extremes_and_moment_sums(x)
+    assert top == 0.0 and bottom == -np.inf
