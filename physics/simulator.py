@@ -4,11 +4,12 @@ Two rigid cylinders with six degrees of freedom each (``dofs="full"``) or with r
 (``dofs="torsional"``, the reduced model), a motor inertia and a load inertia behind
 torsionally flexible shafts, elemental mesh stiffnesses along the contact lines on the base
 plane, normal deviations, contact loss. The mesh position follows the actual pinion
-rotation (plus its eccentricity), not a nominal Ωt. Optional (issue 6): Coulomb sliding
-friction at the contact, anisotropic wheel supports, a mesh stiffness profile along the path
-of contact, and sensors on the bearing force across the line of action. The integrator runs ``oversampling``
+rotation (plus its eccentricity), not a nominal Ωt. The integrator runs ``oversampling``
 times faster than the output rate; the accelerometer is the bearing force through
 structural modes, low-passed (anti-alias) on the fine grid and only then decimated.
+Optional (issue 6): Coulomb sliding friction at the contact, anisotropic wheel supports, a
+mesh stiffness profile along the path of contact, sensors on the bearing force across the
+line of action.
 
 Examples
 --------
