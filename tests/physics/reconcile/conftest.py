@@ -22,6 +22,5 @@ def fast_options(**changes: object) -> ReconcileOptions:
         max_frequency_hz=4000.0,
         max_nfev=15,
         max_findings=3,
-        forward_oversampling=4,
     )
     return dataclasses.replace(options, **changes)  # type: ignore[arg-type]

@@ -44,7 +44,7 @@ def test_reconcile_names_the_spall_and_writes_json_report_and_model(campaign: Pa
         "reconcile", str(campaign / "rec.wav"), "--campaign", str(campaign / "campaign.toml"),
         "--model", str(campaign / "model.toml"), "--json", str(out), "--report", str(campaign / "r.html"),
         "--write-model", str(campaign / "updated.toml"), "--samples-per-mesh", "32",
-        "--max-frequency-hz", "4000", "--mechanisms", "tooth_spall,tooth_crack,index_error", "--max-findings", "2", "--forward-oversampling", "4",
+        "--max-frequency-hz", "4000", "--mechanisms", "tooth_spall,tooth_crack,index_error", "--max-findings", "2",
     )
     assert proc.returncode == 0, proc.stderr
     data = json.loads(out.read_text())
@@ -56,7 +56,7 @@ def test_reconcile_names_the_spall_and_writes_json_report_and_model(campaign: Pa
     assert (campaign / "r.html").read_text().startswith("<!doctype html>")
     updated = model_from_toml((campaign / "updated.toml").read_text())
     assert [(s.wheel, s.tooth) for s in updated.deviations.spalls] == [("pinion", 5)]
-    # Coarse fitting step (4 per sample vs 8 in the truth) and two findings at most: depth to 25 %.
+    # Small band (4 kHz) and two findings at most: depth to 25 %.
     assert updated.deviations.spalls[0].depth_um == pytest.approx(6.0, rel=0.25)
 
 

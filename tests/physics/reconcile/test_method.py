@@ -76,7 +76,7 @@ def test_json_contract_report_and_updated_model(with_reference: ReconciliationRe
     page = html_report(with_reference)
     assert page.count("data:image/png;base64,") == 3 and data["status"] in page
     updated = model_from_toml(model_to_toml(with_reference.updated_model))
-    assert updated.deviations.gear_eccentricity_um == pytest.approx(f["parameters"]["amplitude_um"], rel=1e-6)
+    assert updated.deviations.gear_eccentricity_um == pytest.approx(f["parameters"]["amplitude_um"], rel=1e-3)  # JSON: 4 digits
 
 
 def test_honesty_guard_bounds() -> None:
