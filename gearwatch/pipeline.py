@@ -152,10 +152,13 @@ def analyze_record(
     accelerometers = campaign.accelerometer_channels
     if not accelerometers:
         raise RecordFormatError("the manifest declares no accelerometer channel")
+    # every channel's checks before any heavy work: a bad channel rejects the record at once
+    scans = {channel.name: _checked_signal(record, channel.name, block_samples)
+             for channel in accelerometers}
     channels = [
         _analyze_channel(
             name=channel.name,
-            signal=_checked_signal(record, channel.name, block_samples),
+            signal=scans[channel.name],
             sample_rate_hz=sample_rate_hz,
             tach=tach,
             campaign=campaign,
@@ -173,6 +176,7 @@ def analyze_record(
         speed_variation=float(tach.speed_variation),
         speed_min_rpm=float(tach.min_rpm * pinion_per_tach_rev),
         speed_max_rpm=float(tach.max_rpm * pinion_per_tach_rev),
+        clipped_fraction=max(scan.clipped_fraction for scan in scans.values()),
     )
     provenance = Provenance(
         input_sha256=input_sha256,
@@ -253,6 +257,7 @@ class _ScannedSignal:
     samples: np.ndarray
     """The channel as read (possibly float32, possibly memory-mapped): convert per block."""
     raw_metrics: dict[str, float]
+    clipped_fraction: float
 
 
 def _checked_signal(record: RecordData, name: str, block_samples: int) -> _ScannedSignal:
@@ -297,7 +302,7 @@ def _checked_signal(record: RecordData, name: str, block_samples: int) -> _Scann
         raise RecordRejected(
             f"channel {name!r} is clipped: {clipped:.2%} of samples sit at the sensor's extreme value"
         )
-    return _ScannedSignal(samples, _raw_moments_metrics(sums / samples.size))
+    return _ScannedSignal(samples, _raw_moments_metrics(sums / samples.size), clipped)
 
 
 def _raw_moments_metrics(shifted_means: np.ndarray) -> dict[str, float]:

@@ -205,6 +205,11 @@ def test_clipped_sensor_is_rejected(spalled: SyntheticRecord) -> None:
     acc = np.clip(spalled.acceleration, -1.0, 1.0)
     assert clipped_fraction(acc) > 0.01
     assert clipped_fraction(spalled.acceleration) == 0.0
+    slightly = spalled.acceleration.copy()
+    slightly[1000:1010] = slightly.max()  # one stretch of 10 samples: reported, not refused
+    accepted = analyze_record(record_of(spalled, slightly), campaign_for(spalled),
+                              input_sha256="0" * 64)
+    assert accepted.quality.clipped_fraction == pytest.approx(10 / slightly.size)
     with pytest.raises(RecordRejected, match="clipped"):
         analyze_record(record_of(spalled, acc), campaign_for(spalled), input_sha256="0" * 64)
 
