@@ -252,7 +252,7 @@ def _analyze_tach(
 
 @dataclass(frozen=True)
 class _ScannedSignal:
-    """A channel that passed the checks, with its raw-signal metrics (one pass over blocks)."""
+    """A channel that passed the checks, with its raw-signal metrics and clipped fraction."""
 
     samples: np.ndarray
     """The channel as read (possibly float32, possibly memory-mapped): convert per block."""

@@ -7,6 +7,8 @@ import json
 import sys
 from typing import Any
 
+from gearwatch.commands.replay import add_parameter_arguments
+
 
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
@@ -21,35 +23,14 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--campaign", required=True, help="campaign manifest (campaign.toml)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--curves", action="store_true", help="with --json: include the curves")
-    parser.add_argument(
-        "--mci-form",
-        choices=("robust", "literal"),
-        default=None,
-        help="MCI form: robust (default, localises on zero-mean averages) or the seed's literal form",
-    )
-    parser.add_argument("--samples-per-mesh", type=int, default=None, help="default 64")
-    parser.add_argument("--min-revolutions", type=int, default=None, help="default 20")
-    parser.add_argument(
-        "--max-speed-variation", type=float, default=None, help="relative, default 0.10"
-    )
+    add_parameter_arguments(parser)
     parser.set_defaults(func=run)
-
-
-def parameters_from_args(args: argparse.Namespace) -> Any:
-    from gearwatch.results import AnalysisParameters
-
-    overrides = {
-        "mci_form": args.mci_form,
-        "samples_per_mesh": args.samples_per_mesh,
-        "min_revolutions": args.min_revolutions,
-        "max_speed_variation": args.max_speed_variation,
-    }
-    return AnalysisParameters(**{k: v for k, v in overrides.items() if v is not None})
 
 
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from gearwatch.commands.replay import parameters_from_args
     from gearwatch.errors import InputError
     from gearwatch.pipeline import analyze_file
     from ingest.manifest import load_manifest
@@ -59,8 +40,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{record_path}: no such record file")
     campaign = load_manifest(args.campaign)
     params = parameters_from_args(args)
-    if params.samples_per_mesh < 8:
-        raise InputError("--samples-per-mesh must be at least 8")
     analysis = analyze_file(record_path, campaign, params)
     if args.json:
         json.dump(analysis.to_json(curves=args.curves), sys.stdout, indent=2)

@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
     import os
 
     from gearwatch.cli import main as cli_main
+    from gearwatch.commands.keys import create_api_key
     from gearwatch.errors import GearwatchError, InputError
 
     folder = Path(args.dir).resolve()
@@ -68,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     step(f"per-tooth results of the last day ({last_record.name})",
          ["analyze", str(last_record), "--campaign", str(campaign_dir / "campaign.toml")])
 
-    key = _create_key(database_url)
+    key = create_api_key(database_url, role="operator", name="demo", who="demo")
     url = f"http://{args.host}:{args.port}/"
     print("\n== dashboard and API")
     print(f"dashboard: {url}#key={key}")
@@ -92,20 +93,3 @@ def _last_record(campaign_dir: Path) -> Path:
     campaign = load_manifest(campaign_dir / "campaign.toml")
     entry = max(campaign.records, key=lambda e: e.taken_at)
     return campaign.record_path(entry)
-
-
-def _create_key(database_url: str) -> str:
-    from storage.db import open_database, session_scope
-    from storage.repositories import ApiKeyRepository, AuditRepository
-
-    engine, factory = open_database(database_url)
-    try:
-        with session_scope(factory) as session:
-            key, plaintext = ApiKeyRepository(session).create(role="operator", name="demo")
-            AuditRepository(session).add(
-                who="demo", action="key.create", target=f"key:{key.prefix}",
-                details={"role": "operator", "name": "demo"},
-            )
-    finally:
-        engine.dispose()
-    return str(plaintext)

@@ -42,23 +42,28 @@ def _database_url(args: argparse.Namespace) -> str:
     return Settings().database_url
 
 
-def create_key(args: argparse.Namespace) -> int:
+def create_api_key(database_url: str, *, role: str, name: str, who: str = "cli") -> str:
+    """Create an API key (audited as created by ``who``) and return its plaintext, shown once."""
     from storage.db import open_database, session_scope
     from storage.repositories import ApiKeyRepository, AuditRepository
 
-    engine, factory = open_database(_database_url(args))
+    engine, factory = open_database(database_url)
     try:
         with session_scope(factory) as session:
-            key, plaintext = ApiKeyRepository(session).create(role=args.role, name=args.name)
+            key, plaintext = ApiKeyRepository(session).create(role=role, name=name)
             AuditRepository(session).add(
-                who="cli",
+                who=who,
                 action="key.create",
                 target=f"key:{key.prefix}",
-                details={"role": args.role, "name": args.name},
+                details={"role": role, "name": name},
             )
     finally:
         engine.dispose()
-    print(plaintext)
+    return str(plaintext)
+
+
+def create_key(args: argparse.Namespace) -> int:
+    print(create_api_key(_database_url(args), role=args.role, name=args.name))
     return 0
 
 

@@ -36,18 +36,25 @@ def add_common_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="content-addressed raw file store (default: $GEARWATCH_RAW_STORE, else ./raw-store)",
     )
+    add_parameter_arguments(parser)
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def add_parameter_arguments(parser: argparse.ArgumentParser) -> None:
+    """Analysis parameter options (``--params FILE`` and the individual flags), shared by every
+    command that runs the chain; read back with :func:`parameters_from_args`."""
     parser.add_argument(
         "--params",
         metavar="FILE",
         help="analysis parameters as a JSON or TOML table (names as in AnalysisParameters)",
     )
     parser.add_argument("--mci-form", choices=("robust", "literal"), default=None,
-                        help="MCI form (default robust)")
+                        help="MCI form: robust (default, localises on zero-mean averages) or the "
+                        "seed's literal form")
     parser.add_argument("--samples-per-mesh", type=int, default=None, help="default 64")
     parser.add_argument("--min-revolutions", type=int, default=None, help="default 20")
     parser.add_argument("--max-speed-variation", type=float, default=None,
                         help="relative, default 0.10")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def register(subparsers: Any) -> None:
