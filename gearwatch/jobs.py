@@ -329,6 +329,12 @@ def _store(
 
     records = RecordRepository(session)
     analysis = attempt.analysis
+    if analysis is None and record.status == "accepted" and records.current_result(record.id):
+        # A failed re-analysis (other parameters) must not take an accepted record and its
+        # current result out of the trends: the attempt is rejected, the record is not.
+        return JobResult(record.id, record.sha256, "rejected", record.status,
+                         f"not reprocessed, the current result is kept: {attempt.reason}",
+                         result_id=_current_id(records, record.id))
     if analysis is None:
         records.mark_rejected(record, attempt.reason)
         if attempt.internal:

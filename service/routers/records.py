@@ -260,7 +260,9 @@ def list_results(record_id: RecordId, db: DbSession, _caller: CurrentKey) -> sch
     response_model=schemas.JobOut,
     summary="Analyse a record again with new parameters (operator)",
     description="Reads the kept raw file again. New parameters add a result version (the old "
-    "ones are kept, the new one becomes current); the same parameters change nothing.",
+    "ones are kept, the new one becomes current); the same parameters change nothing. A "
+    "re-analysis that fails answers outcome `rejected` with the reason and keeps the record "
+    "accepted with its current result.",
     responses=errors(401, 403, 404, 422),
 )
 def reprocess(

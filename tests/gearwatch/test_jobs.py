@@ -207,6 +207,37 @@ def test_reprocess_from_the_raw_store_after_the_original_is_gone(db_session, sto
     assert len(RecordRepository(db_session).results(first.record_id)) == 2
 
 
+class _RejectsLiteral(FakeAnalyzer):
+    def __call__(self, record, campaign, params, input_sha256, baselines):  # type: ignore[no-untyped-def]
+        if params.mci_form == "literal":
+            from gearwatch.errors import RecordRejected
+
+            raise RecordRejected("literal MCI refused for this record")
+        return super().__call__(record, campaign, params, input_sha256, baselines)
+
+
+def test_failed_reprocess_keeps_the_accepted_record_and_its_current_result(db_session, store,
+                                                                           tmp_path) -> None:
+    campaign = make_campaign(tmp_path / "camp", [1.0])
+    path = campaign.record_path(campaign.records[0])
+    first = process_file(db_session, path, campaign, raw_store=store, analyzer=_RejectsLiteral())
+    db_session.commit()
+    failed = reprocess_record(db_session, first.record_id, AnalysisParameters(mci_form="literal"),
+                              analyzer=_RejectsLiteral())
+    db_session.commit()
+    assert (failed.outcome, failed.status, failed.result_id) == ("rejected", "accepted", first.result_id)
+    assert "literal MCI refused" in failed.reason and "current result is kept" in failed.reason
+    records = RecordRepository(db_session)
+    record = records.get(first.record_id)
+    assert (record.status, record.reason) == ("accepted", "")
+    assert records.current_result(record.id).id == first.result_id  # type: ignore[union-attr]
+    assert len(records.results(record.id)) == 1
+    # The same through ingestion with the refused parameters (replay with other options).
+    again = process_file(db_session, path, campaign, raw_store=store,
+                         params=AnalysisParameters(mci_form="literal"), analyzer=_RejectsLiteral())
+    assert (again.outcome, again.status) == ("rejected", "accepted")
+
+
 def test_file_outside_the_manifest_takes_its_modification_time(db_session, store,
                                                                tmp_path) -> None:
     campaign = make_campaign(tmp_path / "camp", [1.0])
