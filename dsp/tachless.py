@@ -1,0 +1,646 @@
+"""Tach-less shaft angle: once-per-revolution pulse times from the gear-mesh line alone.
+
+Records without a tachometer (e.g. the SpectraQuest gearbox data) still carry the shaft's angle
+in the phase of the gear-mesh vibration: the mesh harmonic ``h`` of a shaft with ``Z`` teeth
+goes through ``h·Z`` cycles per revolution. This module
+
+1. finds the shaft speed from the amplitude spectrum (:func:`estimate_shaft_hz`: a harmonic
+   comb over line *prominences*; :func:`mesh_line_hz`: the mesh line at ``h·Z × shaft``),
+2. estimates the tooth count from the lines (:func:`estimate_mesh_order`),
+3. isolates the mesh harmonic with a narrow band-pass, takes its analytic signal (one-sided
+   FFT), unwraps the phase, divides it by ``h·Z`` → shaft angle, and interpolates the times at
+   which that angle passes ``2π·n`` (:func:`tachless_shaft_angle`,
+   :func:`shaft_pulse_times_from_mesh`).
+
+Frame. A synthetic pulse is placed where the mesh phase is a whole number of mesh periods, so
+two records of the same rig are in the same frame up to a whole number of mesh periods (which
+tooth, which revolution of the hunting period) — the origin is otherwise arbitrary, unlike a
+tach mark. Periodic phase modulation of the mesh (eccentricity, a damaged tooth) is the same at
+every revolution and only moves that origin; a narrow band (default ±0.3 shaft orders) keeps
+out the gear-order sidebands, whose phase pattern would otherwise repeat only per hunting
+period. Speed changes slower than the band half-width (0.3 × shaft speed) are tracked.
+
+Refusals (:class:`TachlessError`, a ``ValueError`` whose ``str()`` is the reason): no
+prominent mesh line near the expected frequency, or a band that is not clean (its envelope
+almost vanishes somewhere, or the unwrapped phase goes backwards / the implied speed leaves
+±25 % of the mean): then the phase would slip and the averages would be smeared.
+
+Everything here is pure: arrays in, arrays and a frozen dataclass out.
+
+Examples
+--------
+>>> import numpy as np
+>>> fs, shaft_hz, teeth = 10_000.0, 25.0, 32
+>>> t = np.arange(int(4 * fs)) / fs
+>>> angle = 2 * np.pi * shaft_hz * t + 0.02 * np.sin(2 * np.pi * 1.3 * t)   # wobbling speed
+>>> x = np.cos(teeth * angle) + 0.3 * np.cos(2 * teeth * angle + 1.0)
+>>> x = x + 0.2 * np.random.default_rng(0).standard_normal(t.size)
+>>> pulses = shaft_pulse_times_from_mesh(x, fs, teeth, approx_shaft_hz=24.0)
+>>> rev = np.interp(pulses, t, angle) / (2 * np.pi)     # true shaft angle at each pulse
+>>> bool(np.ptp(rev - np.round(rev - rev[0]) - rev[0]) < 0.002)   # same angle every time
+True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+from numpy.typing import ArrayLike, NDArray
+from scipy import ndimage
+
+__all__ = [
+    "ShaftAngleEstimate",
+    "TachlessError",
+    "estimate_mesh_order",
+    "estimate_shaft_hz",
+    "line_prominence",
+    "mesh_line_hz",
+    "shaft_pulse_times_from_mesh",
+    "tachless_shaft_angle",
+]
+
+FloatArray = NDArray[np.float64]
+
+MIN_LINE_PROMINENCE_DB = 15.0
+"""A mesh line must stand this far above the local median of the amplitude spectrum."""
+COMB_THRESHOLD_NP = math.log(3.0)
+"""Comb scores count a harmonic's log-prominence above ln 3 (9.5 dB); a noise bin (Rayleigh
+amplitude) exceeds it with probability ~0.2 % (~0.6 % for the best of 3 bins)."""
+SHAFT_TOOTH_COST_NP = 0.05
+"""Each harmonic of a shaft comb costs 0.05 Np: a sub-multiple of the true speed finds the same
+lines with more teeth, so it scores lower; white noise scores below zero."""
+MESH_TOOTH_COST_NP = 1.0
+"""Each harmonic of a mesh-order comb costs 1 Np: a mesh harmonic is a strong line (≥ 20 dB, 3 Np,
+above the floor), and a divisor of the tooth count pays for twice the teeth."""
+COMB_CAP_NP = math.log(100.0)
+"""Each harmonic's contribution is capped at 40 dB so one huge line cannot carry a comb."""
+MIN_ENVELOPE_RATIO = 0.05
+"""The band's envelope may not drop below this fraction of its median (phase slip)."""
+MAX_SPEED_DEVIATION = 0.25
+"""The speed implied by the phase must stay within ±25 % of its mean."""
+EDGE_REVOLUTIONS_PER_INVERSE_BAND = 1.5
+"""Pulses closer than ``1.5 / bandwidth_orders`` revolutions to either end of the record are
+dropped: there the circular band-pass sees the wrap-around."""
+
+
+class TachlessError(ValueError):
+    """The vibration signal cannot give a shaft angle; ``str()`` is the reason."""
+
+
+@dataclass(frozen=True)
+class ShaftAngleEstimate:
+    """Synthetic once-per-revolution pulses and how they were obtained.
+
+    Attributes
+    ----------
+    pulse_times_s : ndarray
+        Times (s) at which the estimated shaft angle passes ``2π·n`` (n = 0, 1, …): the first
+        pulse is the angle origin; each pulse sits at a whole mesh period of the mesh phase.
+    mean_shaft_hz : float
+        Mean shaft speed between the first and last pulse (Hz).
+    mesh_line_hz : float
+        The mesh harmonic's spectral line (Hz) around which the band-pass was centred.
+    line_prominence_db : float
+        Height of that line above the local median of the amplitude spectrum (dB).
+    min_envelope_ratio : float
+        Smallest envelope of the band signal / its median over the kept span.
+    speed_variation : float
+        ``(max − min) / mean`` of the per-revolution speed.
+    mesh_order : int
+        Teeth on the shaft (the mesh order used).
+    harmonic : int
+        Mesh harmonic demodulated.
+    """
+
+    pulse_times_s: FloatArray
+    mean_shaft_hz: float
+    mesh_line_hz: float
+    line_prominence_db: float
+    min_envelope_ratio: float
+    speed_variation: float
+    mesh_order: int
+    harmonic: int
+
+
+# --------------------------------------------------------------------------- spectrum tools
+
+
+def _checked_signal(signal: ArrayLike, sample_rate_hz: float) -> FloatArray:
+    x = np.asarray(signal, dtype=np.float64)
+    if x.ndim != 1:
+        raise TachlessError(f"the signal must be 1-D, got shape {x.shape}")
+    if x.size < 64:
+        raise TachlessError(f"the signal has {x.size} samples, too short for a shaft angle")
+    if not np.all(np.isfinite(x)):
+        raise TachlessError("the signal contains NaN or infinite samples")
+    if not math.isfinite(sample_rate_hz) or sample_rate_hz <= 0:
+        raise TachlessError(f"sample_rate_hz must be positive, got {sample_rate_hz}")
+    return x - float(np.mean(x))
+
+
+def line_prominence(signal: ArrayLike, sample_rate_hz: float) -> tuple[FloatArray, FloatArray]:
+    """Log-prominence of every bin of the Hann amplitude spectrum, and the bin frequencies.
+
+    Prominence = ``ln|X(f)| − median of ln|X|`` over a running window of ±0.5 % of the bins
+    (at least ±50): nepers above the local noise floor; lines stand out, a smooth noise floor
+    is ~0 (a Rayleigh bin scatters by about ±0.6 Np).
+
+    Returns
+    -------
+    prominence_np, frequency_hz : ndarray
+        One value per one-sided DFT bin.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(20_000) / 10_000.0
+    >>> x = np.sin(2 * np.pi * 1234.0 * t) + 0.01 * np.random.default_rng(1).standard_normal(t.size)
+    >>> p, f = line_prominence(x, 10_000.0)
+    >>> float(f[np.argmax(p)]), bool(p.max() > np.log(1000))
+    (1234.0, True)
+    """
+    x = _checked_signal(signal, sample_rate_hz)
+    spectrum = np.abs(scipy.fft.rfft(x * np.hanning(x.size)))
+    log_amplitude = np.log(np.maximum(spectrum, 1e-300 + 1e-12 * float(spectrum.max())))
+    half = max(50, int(0.005 * spectrum.size))
+    floor = ndimage.median_filter(log_amplitude, size=2 * half + 1, mode="nearest")
+    frequency_hz = np.asarray(np.fft.rfftfreq(x.size, d=1.0 / sample_rate_hz), dtype=np.float64)
+    return np.asarray(log_amplitude - floor, dtype=np.float64), frequency_hz
+
+
+def _peak_bins(prominence: FloatArray, lo_bin: int, hi_bin: int, count: int) -> NDArray[np.int64]:
+    """The ``count`` most prominent local maxima in bins ``lo_bin .. hi_bin``."""
+    lo_bin = max(1, lo_bin)
+    hi_bin = min(prominence.size - 2, hi_bin)
+    if hi_bin <= lo_bin:
+        return np.empty(0, dtype=np.int64)
+    seg = prominence[lo_bin : hi_bin + 1]
+    left = prominence[lo_bin - 1 : hi_bin]
+    right = prominence[lo_bin + 1 : hi_bin + 2]
+    maxima = np.flatnonzero((seg >= left) & (seg > right)) + lo_bin
+    best = maxima[np.argsort(prominence[maxima])[::-1][:count]]
+    return np.asarray(best, dtype=np.int64)
+
+
+def _refined_bin(prominence: FloatArray, b: int) -> float:
+    """Sub-bin peak position by a parabola through the log-amplitude at b−1, b, b+1."""
+    y0, y1, y2 = prominence[b - 1], prominence[b], prominence[b + 1]
+    denominator = y0 - 2.0 * y1 + y2
+    if denominator >= 0.0:
+        return float(b)
+    return float(b + 0.5 * (y0 - y2) / denominator)
+
+
+def _comb_scores(
+    prominence: FloatArray,
+    bin_hz: float,
+    shaft_hz: FloatArray,
+    max_hz: float,
+    max_orders: int,
+    tooth_cost_np: float = 0.05,
+    relative_tolerance: float = 0.0,
+) -> FloatArray:
+    """Σ_k max(0, min(prominence near k·f, cap) − threshold) − cost × teeth, per candidate f.
+
+    "Near": within ±1 bin, or ±``relative_tolerance`` × k·f when that is wider.
+    """
+    scores = np.empty(shaft_hz.size)
+    for i, f in enumerate(shaft_hz):
+        k = np.arange(1, min(max_orders, int(max_hz / f)) + 1)
+        centre = np.rint(k * f / bin_hz).astype(np.int64)
+        keep = (centre >= 1) & (centre < prominence.size - 1)
+        centre, k = centre[keep], k[keep]
+        if centre.size == 0:
+            scores[i] = -np.inf
+            continue
+        if relative_tolerance > 0.0:
+            reach = np.maximum(1, np.ceil(relative_tolerance * k * f / bin_hz)).astype(np.int64)
+            best = np.array(
+                [prominence[max(0, c - r) : c + r + 1].max() for c, r in zip(centre, reach, strict=True)]
+            )
+        else:
+            best = np.maximum(np.maximum(prominence[centre - 1], prominence[centre]), prominence[centre + 1])
+        gain = np.clip(np.minimum(best, COMB_CAP_NP) - COMB_THRESHOLD_NP, 0.0, None)
+        scores[i] = float(np.sum(gain) - tooth_cost_np * k.size)
+    return scores
+
+
+def estimate_shaft_hz(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    *,
+    min_shaft_hz: float,
+    max_shaft_hz: float,
+    max_orders: int = 400,
+) -> float:
+    """Shaft speed (Hz) of a gear vibration signal from the comb of its spectral lines.
+
+    Every strong spectral line ``p`` (the 30 most prominent peaks) proposes the shaft speeds
+    ``p / m`` inside ``[min_shaft_hz, max_shaft_hz]`` (m = 1, 2, …); each proposal is scored by
+    the comb of its harmonics up to ``max_orders`` and 0.45 × the sampling rate: the sum over
+    harmonics of the capped log-prominence above ln 3, minus 0.05 Np per harmonic. A multiple
+    of the true speed misses the lines between its teeth; a sub-multiple finds the same lines
+    but pays for twice the teeth. The best proposal is refined on a fine grid around it.
+
+    Parameters
+    ----------
+    signal : array_like
+        1-D vibration signal.
+    sample_rate_hz : float
+        Sampling rate (any consistent unit: cycles per sample when it is 1).
+    min_shaft_hz, max_shaft_hz : float
+        Search range of the shaft speed.
+    max_orders : int
+        Highest shaft order used by the comb.
+
+    Returns
+    -------
+    float
+        Estimated shaft speed (Hz).
+
+    Raises
+    ------
+    TachlessError
+        No proposal scores above zero (no shaft-periodic lines: e.g. white noise).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fs = 10_000.0
+    >>> t = np.arange(int(3 * fs)) / fs
+    >>> x = sum(np.cos(2 * np.pi * k * 23.0 * t + k) for k in (1, 2, 31, 32, 33, 64))
+    >>> x = x + 0.1 * np.random.default_rng(0).standard_normal(t.size)
+    >>> round(estimate_shaft_hz(x, fs, min_shaft_hz=5.0, max_shaft_hz=100.0), 2)
+    23.0
+    """
+    if not 0 < min_shaft_hz < max_shaft_hz:
+        raise TachlessError(f"need 0 < min_shaft_hz < max_shaft_hz, got {min_shaft_hz}, {max_shaft_hz}")
+    prominence, freq = line_prominence(signal, sample_rate_hz)
+    bin_hz = float(freq[1])
+    max_hz = 0.45 * sample_rate_hz
+    peaks = _peak_bins(prominence, int(min_shaft_hz / bin_hz), int(max_hz / bin_hz), 30)
+    proposals: list[float] = []
+    divisors: list[int] = []
+    for b in peaks:
+        p_hz = _refined_bin(prominence, int(b)) * bin_hz
+        m = np.arange(max(1, math.ceil(p_hz / max_shaft_hz)), math.floor(p_hz / min_shaft_hz) + 1)
+        proposals.extend((p_hz / m).tolist())
+        divisors.extend(m.tolist())
+    if not proposals:
+        raise TachlessError("no spectral line in the shaft-speed search range")
+    candidates = np.asarray(proposals)
+    scores = _comb_scores(prominence, bin_hz, candidates, max_hz, max_orders, SHAFT_TOOTH_COST_NP)
+    best_index = int(np.argmax(scores))
+    best = float(candidates[best_index])
+    if not scores.max() > 0.0:
+        raise TachlessError(
+            "no shaft-periodic line structure in the spectrum (comb score "
+            f"{scores.max():.1f} ≤ 0): the signal shows no shaft speed"
+        )
+    # Fine grid: ±1 bin at the proposing line (order m), in steps of ¼ bin at the highest
+    # harmonic, so every tooth of the comb can land on its line.
+    m_best = divisors[best_index]
+    k_max = max(1, min(max_orders, int(max_hz / best)))
+    n_fine = 2 * max(1, math.ceil(4 * k_max / m_best)) + 1
+    fine = best + np.linspace(-1.0, 1.0, n_fine) * bin_hz / m_best
+    fine_scores = _comb_scores(prominence, bin_hz, fine, max_hz, max_orders, SHAFT_TOOTH_COST_NP)
+    return float(np.mean(fine[fine_scores == fine_scores.max()]))
+
+
+def estimate_mesh_order(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    shaft_hz: float,
+    *,
+    min_order: int = 8,
+    max_order: int = 200,
+    relative_tolerance: float = 0.002,
+) -> int:
+    """Tooth count of the shaft: the integer order whose harmonics carry the strongest lines.
+
+    Each order ``m`` in ``[min_order, max_order]`` is scored by the comb of its harmonics
+    ``h·m`` (h = 1, 2, … below 0.45 × the sampling rate) as in :func:`estimate_shaft_hz` but
+    at 1 Np per harmonic; the mesh order has a line at every harmonic, its multiples skip
+    some, its divisors pay for twice the teeth, its neighbours fall on weaker sidebands or
+    noise. The winner
+    must lead the runner-up clearly (by 1 Np), otherwise the count is refused as ambiguous.
+
+    Parameters
+    ----------
+    signal : array_like
+        1-D vibration signal.
+    sample_rate_hz : float
+        Sampling rate.
+    shaft_hz : float
+        Shaft speed (e.g. from :func:`estimate_shaft_hz`).
+    min_order, max_order : int
+        Search range of the tooth count.
+    relative_tolerance : float
+        Each harmonic's line is looked for within ±this fraction of its expected frequency
+        (the shaft speed's uncertainty and drift; the comb estimate is good to ~0.05 %).
+
+    Returns
+    -------
+    int
+        Estimated teeth on that shaft.
+
+    Raises
+    ------
+    TachlessError
+        No order has a positive comb score, or the best two are within 1 Np.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fs = 10_000.0
+    >>> t = np.arange(int(3 * fs)) / fs
+    >>> x = sum(a * np.cos(2 * np.pi * k * 25.0 * t + k) for a, k in
+    ...         ((1, 32), (0.3, 31), (0.3, 33), (0.7, 64), (0.4, 96), (0.2, 128), (0.5, 6)))
+    >>> x = x + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    >>> estimate_mesh_order(x, fs, 25.0)
+    32
+    """
+    if not 1 <= min_order <= max_order:
+        raise TachlessError(f"need 1 <= min_order <= max_order, got {min_order}, {max_order}")
+    prominence, freq = line_prominence(signal, sample_rate_hz)
+    bin_hz = float(freq[1])
+    max_hz = 0.45 * sample_rate_hz
+    orders = np.arange(min_order, max_order + 1)
+    orders = orders[orders * shaft_hz < max_hz]
+    comb_hz = np.asarray(orders * shaft_hz, dtype=np.float64)
+    if orders.size == 0:
+        raise TachlessError("no tooth count in the search range has its mesh line below 0.45 × fs")
+    # The comb of order m is the shaft comb of a shaft m times faster.
+    scores = _comb_scores(
+        prominence, bin_hz, comb_hz, max_hz, 10_000, MESH_TOOTH_COST_NP, relative_tolerance
+    )
+    ranking = np.argsort(scores)[::-1]
+    best = int(orders[ranking[0]])
+    if not scores[ranking[0]] > 0.0:
+        raise TachlessError("no mesh line: no tooth count has prominent harmonics")
+    if ranking.size > 1 and scores[ranking[0]] - scores[ranking[1]] < 1.0:
+        raise TachlessError(
+            f"tooth count ambiguous: orders {best} and {int(orders[ranking[1]])} score within 1 Np"
+        )
+    return best
+
+
+def mesh_line_hz(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    mesh_order: int,
+    approx_shaft_hz: float,
+    *,
+    harmonic: int = 1,
+    search_fraction: float = 0.05,
+) -> tuple[float, float]:
+    """The mesh harmonic's spectral line near ``harmonic × mesh_order × approx_shaft_hz``.
+
+    Returns
+    -------
+    line_hz, prominence_db : float
+        Frequency of the most prominent peak within ±``search_fraction`` of the expectation
+        (parabolic sub-bin refinement) and its height above the local median (dB).
+
+    Raises
+    ------
+    TachlessError
+        The expected line is above 0.45 × fs, or no peak there stands
+        ``MIN_LINE_PROMINENCE_DB`` above the floor.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(30_000) / 10_000.0
+    >>> x = np.cos(2 * np.pi * 800.0 * t) + 0.1 * np.random.default_rng(0).standard_normal(t.size)
+    >>> line, db = mesh_line_hz(x, 10_000.0, 32, 24.0)
+    >>> round(line, 1), bool(db > 30)
+    (800.0, True)
+    """
+    expected_hz = harmonic * mesh_order * approx_shaft_hz
+    if not 0 < expected_hz < 0.45 * sample_rate_hz:
+        raise TachlessError(
+            f"the expected mesh line ({expected_hz:.6g} Hz) is not below 0.45 × the sampling rate"
+        )
+    prominence, freq = line_prominence(signal, sample_rate_hz)
+    bin_hz = float(freq[1])
+    lo = int(expected_hz * (1 - search_fraction) / bin_hz)
+    hi = math.ceil(expected_hz * (1 + search_fraction) / bin_hz)
+    peaks = _peak_bins(prominence, lo, hi, 1)
+    prominence_db = float(20.0 / math.log(10.0) * prominence[peaks[0]]) if peaks.size else -math.inf
+    if prominence_db < MIN_LINE_PROMINENCE_DB:
+        raise TachlessError(
+            f"no mesh line near {expected_hz:.6g} Hz (harmonic {harmonic} of order {mesh_order}): "
+            f"the best peak stands {prominence_db:.1f} dB above the floor, "
+            f"{MIN_LINE_PROMINENCE_DB:.0f} dB needed"
+        )
+    return _refined_bin(prominence, int(peaks[0])) * bin_hz, prominence_db
+
+
+# --------------------------------------------------------------------------- shaft angle
+
+
+def tachless_shaft_angle(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    mesh_order: int,
+    *,
+    approx_shaft_hz: float | None = None,
+    harmonic: int = 1,
+    bandwidth_orders: float = 0.3,
+    offset_mesh_periods: int = 0,
+    search_fraction: float = 0.05,
+) -> ShaftAngleEstimate:
+    """Shaft angle from the phase of one mesh harmonic; synthetic once-per-rev pulses.
+
+    Parameters
+    ----------
+    signal : array_like
+        1-D vibration signal (accelerometer).
+    sample_rate_hz : float
+        Sampling rate. Only ratios matter: with ``sample_rate_hz = 1`` times are in samples.
+    mesh_order : int
+        Teeth on the shaft whose angle is wanted.
+    approx_shaft_hz : float, optional
+        Rough shaft speed (±``search_fraction``); default: :func:`estimate_shaft_hz` over
+        ``[20 / duration, 0.45 fs / (harmonic × mesh_order)]``.
+    harmonic : int
+        Mesh harmonic to demodulate (pick the cleanest, usually the strongest).
+    bandwidth_orders : float
+        Half-width of the band-pass in shaft orders (raised-cosine edges over the outer 30 %),
+        below ``mesh_order / 2``. It must hold the speed fluctuation's FM spread, about
+        ``harmonic × mesh_order × (peak speed deviation fraction)`` orders plus the fluctuation
+        rate in orders: a low harmonic needs the narrowest band. Lines inside it whose pattern does not repeat every
+        revolution (gear-order sidebands) add a revolution-to-revolution angle jitter; speed
+        changes faster than ``bandwidth_orders × shaft speed`` are not tracked.
+    offset_mesh_periods : int
+        Move the angle origin by this many mesh periods (aligning two records of one rig).
+    search_fraction : float
+        Relative search half-width for the mesh line around the expectation.
+
+    Returns
+    -------
+    ShaftAngleEstimate
+
+    Raises
+    ------
+    TachlessError
+        No mesh line, or the band is not clean (see the module docstring), or fewer than two
+        revolutions remain after the edges are dropped.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fs = 5_000.0
+    >>> t = np.arange(int(3 * fs)) / fs
+    >>> x = np.cos(2 * np.pi * 20 * 30.0 * t) + 0.05 * np.random.default_rng(0).standard_normal(t.size)
+    >>> est = tachless_shaft_angle(x, fs, 20, approx_shaft_hz=30.0)
+    >>> round(est.mean_shaft_hz, 3), bool(np.allclose(np.diff(est.pulse_times_s), 1 / 30.0, atol=2e-5))
+    (30.0, True)
+    """
+    x = _checked_signal(signal, sample_rate_hz)
+    if int(mesh_order) != mesh_order or mesh_order < 1:
+        raise TachlessError(f"mesh_order must be a positive integer, got {mesh_order}")
+    if int(harmonic) != harmonic or harmonic < 1:
+        raise TachlessError(f"harmonic must be a positive integer, got {harmonic}")
+    if not 0 < bandwidth_orders < mesh_order / 2:
+        raise TachlessError(
+            f"bandwidth_orders must be in (0, mesh_order/2 = {mesh_order / 2}), got {bandwidth_orders}"
+        )
+    duration_s = x.size / sample_rate_hz
+    if approx_shaft_hz is None:
+        approx_shaft_hz = _shaft_from_mesh_comb(x, sample_rate_hz, mesh_order, harmonic, duration_s)
+    line_hz, prominence_db = mesh_line_hz(
+        x, sample_rate_hz, mesh_order, approx_shaft_hz, harmonic=harmonic, search_fraction=search_fraction
+    )
+    cycles_per_rev = harmonic * mesh_order
+    # Centre the band on the power centroid around the peak: a speed fluctuation spreads the
+    # line into FM sidebands, and the tallest of them need not be the carrier.
+    line_hz = _power_centroid_hz(x, sample_rate_hz, line_hz, bandwidth_orders * line_hz / cycles_per_rev)
+    shaft_hz = line_hz / cycles_per_rev
+    band = _analytic_band(x, sample_rate_hz, line_hz, bandwidth_orders * shaft_hz)
+
+    # Keep the span unaffected by the circular filter's wrap-around.
+    edge = math.ceil(EDGE_REVOLUTIONS_PER_INVERSE_BAND / bandwidth_orders * sample_rate_hz / shaft_hz)
+    if x.size - 2 * edge < 2 * sample_rate_hz / shaft_hz:
+        raise TachlessError(
+            f"the record ({duration_s:.3g} s) is too short: less than two revolutions remain after "
+            f"dropping {edge} samples at each end (band-pass edges)"
+        )
+    kept = band[edge : x.size - edge]
+    envelope = np.abs(kept)
+    envelope_ratio = float(envelope.min() / np.median(envelope))
+    if envelope_ratio < MIN_ENVELOPE_RATIO:
+        raise TachlessError(
+            f"the band around {line_hz:.6g} Hz is not clean: its envelope drops to "
+            f"{envelope_ratio:.3f} of its median (a phase slip); try another harmonic or a narrower band"
+        )
+    # Mesh phase in mesh periods (cycles of the fundamental), increasing with time.
+    mesh_phase = np.unwrap(np.angle(kept)) / (2.0 * np.pi * harmonic)
+    if np.min(np.diff(mesh_phase)) <= 0.0:
+        raise TachlessError(
+            f"the band around {line_hz:.6g} Hz is not clean: its phase does not advance steadily "
+            "(instantaneous speed outside the plausible range)"
+        )
+    # Pulses where the mesh phase is a whole number of mesh periods, one per revolution.
+    first = math.ceil(mesh_phase[0]) + int(offset_mesh_periods) % mesh_order
+    if first - mesh_phase[0] >= mesh_order:
+        first -= mesh_order
+    levels = np.arange(first, mesh_phase[-1], mesh_order, dtype=np.float64)
+    if levels.size < 3:
+        raise TachlessError("fewer than two whole revolutions in the usable span")
+    index = np.searchsorted(mesh_phase, levels) - 1
+    index = np.clip(index, 0, mesh_phase.size - 2)
+    fraction = (levels - mesh_phase[index]) / (mesh_phase[index + 1] - mesh_phase[index])
+    pulse_times_s = (edge + index + fraction) / sample_rate_hz
+    rev_hz = 1.0 / np.diff(pulse_times_s)
+    mean_hz = float((pulse_times_s.size - 1) / (pulse_times_s[-1] - pulse_times_s[0]))
+    variation = float((rev_hz.max() - rev_hz.min()) / mean_hz)
+    if variation > 2 * MAX_SPEED_DEVIATION:
+        raise TachlessError(
+            f"the band around {line_hz:.6g} Hz is not clean: the per-revolution speed varies by "
+            f"{100 * variation:.0f} % (over {200 * MAX_SPEED_DEVIATION:.0f} %)"
+        )
+    return ShaftAngleEstimate(
+        pulse_times_s=np.asarray(pulse_times_s, dtype=np.float64),
+        mean_shaft_hz=mean_hz,
+        mesh_line_hz=float(line_hz),
+        line_prominence_db=prominence_db,
+        min_envelope_ratio=envelope_ratio,
+        speed_variation=variation,
+        mesh_order=int(mesh_order),
+        harmonic=int(harmonic),
+    )
+
+
+def shaft_pulse_times_from_mesh(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    mesh_order: int,
+    approx_shaft_hz: float | None = None,
+    harmonic: int = 1,
+    bandwidth_orders: float = 0.3,
+    *,
+    offset_mesh_periods: int = 0,
+) -> FloatArray:
+    """Synthetic once-per-revolution pulse times (s) from the mesh phase.
+
+    The pulse times of :func:`tachless_shaft_angle` (see there for the parameters); use them
+    as a tachometer with ``pulses_per_rev = 1`` on the shaft with ``mesh_order`` teeth.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fs = 5_000.0
+    >>> t = np.arange(int(2 * fs)) / fs
+    >>> x = np.cos(2 * np.pi * 20 * 30.0 * t)
+    >>> p = shaft_pulse_times_from_mesh(x, fs, 20, approx_shaft_hz=30.0)
+    >>> bool(np.allclose(np.diff(p), 1 / 30.0, atol=1e-6))
+    True
+    """
+    return tachless_shaft_angle(
+        signal,
+        sample_rate_hz,
+        mesh_order,
+        approx_shaft_hz=approx_shaft_hz,
+        harmonic=harmonic,
+        bandwidth_orders=bandwidth_orders,
+        offset_mesh_periods=offset_mesh_periods,
+    ).pulse_times_s
+
+
+def _shaft_from_mesh_comb(
+    x: FloatArray, sample_rate_hz: float, mesh_order: int, harmonic: int, duration_s: float
+) -> float:
+    """Shaft speed when none is given: comb search up to the highest speed whose mesh line fits."""
+    max_shaft_hz = 0.45 * sample_rate_hz / (harmonic * mesh_order)
+    min_shaft_hz = min(20.0 / duration_s, 0.5 * max_shaft_hz)
+    return estimate_shaft_hz(x, sample_rate_hz, min_shaft_hz=min_shaft_hz, max_shaft_hz=max_shaft_hz)
+
+
+def _power_centroid_hz(x: FloatArray, sample_rate_hz: float, centre_hz: float, half_width_hz: float) -> float:
+    """Power-weighted mean frequency of ``x`` within ``centre ± half_width``."""
+    power = np.abs(scipy.fft.rfft(x * np.hanning(x.size))) ** 2
+    freq = np.fft.rfftfreq(x.size, d=1.0 / sample_rate_hz)
+    inside = np.abs(freq - centre_hz) <= half_width_hz
+    if not np.any(inside) or power[inside].sum() <= 0.0:
+        return centre_hz
+    return float(np.sum(freq[inside] * power[inside]) / np.sum(power[inside]))
+
+
+def _analytic_band(x: FloatArray, sample_rate_hz: float, centre_hz: float, half_width_hz: float) -> NDArray[np.complex128]:
+    """Analytic signal of ``x`` band-passed to ``centre ± half_width`` (one-sided FFT mask,
+    raised-cosine edges over the outer 30 % of each side)."""
+    n = x.size
+    n_fft = scipy.fft.next_fast_len(n)
+    spectrum = scipy.fft.fft(x, n=n_fft)
+    freq = np.fft.fftfreq(n_fft, d=1.0 / sample_rate_hz)
+    distance = np.abs(freq - centre_hz) / half_width_hz  # 0 at the centre, 1 at the band edge
+    flat = 0.7
+    taper = np.clip((1.0 - distance) / (1.0 - flat), 0.0, 1.0)
+    gain = 0.5 - 0.5 * np.cos(np.pi * taper)
+    gain[freq <= 0] = 0.0
+    return np.asarray(scipy.fft.ifft(spectrum * 2.0 * gain)[:n], dtype=np.complex128)
