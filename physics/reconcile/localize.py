@@ -1,5 +1,10 @@
 """Where a whitened residual concentrates: order class, tooth and angle sector, frequency band.
 
+Non-synchronous content (bearings, another shaft, electrical lines) never reaches the
+hunting-period mean: it is in the scatter between segments. :func:`nonsynchronous_mismatch`
+finds bands where that scatter stands above its own broadband floor — content the simulator
+(synchronous physics plus white sensor noise) cannot produce.
+
 All inputs are arrays on the hunting-period grid of :mod:`physics.reconcile.observables`.
 ``chi2`` is the per-bin ``2 |r(k)|² / v(k)`` (2 expected per bin); shares are of the excess
 ``Σ max(χ²_k − 2, 0)``, so pure noise has no share to give.
@@ -164,6 +169,96 @@ def mismatches(
     if band is not None:
         out.append(band)
     return out
+
+
+def nonsynchronous_mismatch(
+    segment_spectra: NDArray[np.complex128],
+    used: NDArray[np.bool_],
+    frequency_hz: FloatArray,
+    *,
+    band_hz: float = 50.0,
+    floor_window_hz: float = 200.0,
+    family_p_value: float = 1e-4,
+) -> dict[str, Any] | None:
+    """The band where the between-segment scatter stands significantly above its floor.
+
+    Parameters
+    ----------
+    segment_spectra : ndarray, shape (segments, bins)
+        Complex spectrum of each hunting-period segment.
+    used : ndarray of bool
+        Bins to consider.
+    frequency_hz : ndarray
+        Frequency of each bin.
+    band_hz : float
+        Width of the bands the significant bins are grouped into.
+    floor_window_hz : float
+        Width of the running median that estimates the broadband floor of the scatter (at
+        least 101 bins). Narrow enough to follow the anti-alias roll-off, whose slope would
+        otherwise pass for excess scatter.
+    family_p_value : float
+        Family-wise false-alarm probability over all the bins (Bonferroni): under a smooth
+        floor each bin's scatter is a scaled χ² with ``2 (segments − 1)`` degrees of freedom.
+
+    Returns
+    -------
+    dict or None
+        ``{"domain": "non_synchronous", "band_hz": [lo, hi], "peak_hz", "excess_db", "share",
+        "significant_bins", "p_value"}`` for the band holding the most significant excess —
+        ``share`` is its scatter above the floor over all the scatter energy — or None when
+        no bin is significant (or there are fewer than two segments).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> seg = rng.normal(size=(4, 4000)) + 1j * rng.normal(size=(4, 4000))
+    >>> f = np.arange(4000) * 1.0
+    >>> nonsynchronous_mismatch(seg, np.ones(4000, bool), f) is None   # white noise only
+    True
+    >>> seg[:, 1520] += 8.0 * np.exp(2j * np.pi * rng.uniform(size=4))  # a tone off the grid
+    >>> m = nonsynchronous_mismatch(seg, np.ones(4000, bool), f)
+    >>> m["band_hz"], m["peak_hz"]
+    ([1500.0, 1550.0], 1520.0)
+    """
+    from scipy.ndimage import median_filter
+    from scipy.stats import chi2 as chi2_dist
+    from scipy.stats import f as f_dist
+
+    spectra = np.asarray(segment_spectra)
+    segments = spectra.shape[0]
+    if segments < 2 or not np.any(used):
+        return None
+    scatter = np.sum(np.abs(spectra - spectra.mean(axis=0)) ** 2, axis=0) / (segments - 1)
+    idx = np.flatnonzero(used)
+    s = scatter[idx]
+    f = np.asarray(frequency_hz, dtype=np.float64)[idx]
+    df = float(np.median(np.diff(f))) if f.size > 1 else 1.0
+    half = max(50, round(floor_window_hz / 2 / df))
+    nu = 2 * (segments - 1)
+    # The median of a scaled χ²_ν, turned into its mean; mirrored edges keep the floor unbiased.
+    floor = median_filter(s, size=2 * half + 1, mode="mirror") * (nu / float(chi2_dist.ppf(0.5, nu)))
+    ratio = np.where(floor > 0, s / np.where(floor > 0, floor, 1.0), 1.0)
+    # The floor is itself an estimate (a median of 2·half + 1 bins, efficiency ≈ 2/π of a mean):
+    # the ratio is F-distributed rather than χ²/ν, whose tail would be too light.
+    p_bin = f_dist.sf(ratio, nu, nu * (2 * half + 1) * 2 / np.pi)
+    significant = p_bin * s.size < family_p_value
+    if not np.any(significant):
+        return None
+    band = np.floor(f / band_hz).astype(int)
+    above = np.where(significant, np.maximum(s - floor, 0.0), 0.0)
+    per_band = np.bincount(band, weights=above)
+    best = int(np.argmax(per_band))
+    in_band = (band == best) & significant
+    peak = int(np.flatnonzero(in_band)[np.argmax(ratio[in_band])])
+    return {
+        "domain": "non_synchronous",
+        "band_hz": [round(best * band_hz, 1), round((best + 1) * band_hz, 1)],
+        "peak_hz": round(float(f[peak]), 1),
+        "excess_db": round(float(10 * np.log10(ratio[peak])), 1),
+        "share": float(per_band[best] / max(float(s.sum()), 1e-300)),
+        "significant_bins": int(significant.sum()),
+        "p_value": float(min(1.0, float(p_bin[significant].min()) * s.size)),
+    }
 
 
 def chi2_per_bin(residual: NDArray[np.complex128], variance: FloatArray, used: NDArray[np.bool_]) -> FloatArray:
