@@ -25,6 +25,7 @@ RECORD_STATUSES = ("accepted", "rejected", "pending")
 ALARM_STATES = ("warning", "alarm", "acknowledged", "cleared")
 ALARM_SEVERITIES = ("warning", "alarm")
 ROLES = ("viewer", "operator", "admin")
+RECONCILIATION_STATUSES = ("queued", "running", "done", "failed")
 TREND_INDEX_NAME = "ix_tooth_indicators_trend"
 
 NAMING_CONVENTION = {
@@ -304,6 +305,44 @@ class RecordMetric(Base):
     metric: Mapped[str] = mapped_column(sa.String(32))
     value: Mapped[float]
     is_current: Mapped[bool] = mapped_column(default=True)
+
+
+class Reconciliation(Base):
+    """One physics reconciliation of a stored record (issue 6): simulator configuration vs
+    recording, run by a job; its input configuration, options, result JSON, HTML report and
+    the updated configuration. The record's ``sha256`` is the provenance of the input data."""
+
+    __tablename__ = "reconciliations"
+    __table_args__ = (_check_in("status", RECONCILIATION_STATUSES, "status"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    record_id: Mapped[int] = mapped_column(
+        sa.ForeignKey("records.id", ondelete="CASCADE"), index=True
+    )
+    reference_record_id: Mapped[int | None] = mapped_column(
+        sa.ForeignKey("records.id", ondelete="SET NULL")
+    )
+    """A healthy record of the same rig whose residual is known model-form error."""
+    status: Mapped[str] = mapped_column(sa.String(16), default="queued")
+    options: Mapped[dict[str, Any]] = mapped_column(sa.JSON, default=dict)
+    """samples_per_mesh, max_frequency_hz, max_findings, mechanisms, channel, forward_oversampling."""
+    model_toml: Mapped[str | None] = mapped_column(sa.Text)
+    """The simulator configuration used as the base; the rig's default model (filled in by the
+    job, which knows the record's sample rate) when the request gave none."""
+    result: Mapped[dict[str, Any] | None] = mapped_column(sa.JSON)
+    """The issue-6 JSON (``ReconciliationResult.to_json()``) once done."""
+    report_html: Mapped[str | None] = mapped_column(sa.Text)
+    updated_model_toml: Mapped[str | None] = mapped_column(sa.Text)
+    error: Mapped[str] = mapped_column(sa.Text, default="")
+    """Why the reconciliation failed (empty otherwise)."""
+    code_version: Mapped[str] = mapped_column(sa.String(100))
+    """The code that created the request, then the code that ran it."""
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    started_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
+    finished_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
+
+    record: Mapped[Record] = relationship(foreign_keys=[record_id])
+    reference_record: Mapped[Record | None] = relationship(foreign_keys=[reference_record_id])
 
 
 class AlarmRule(Base):

@@ -43,6 +43,7 @@ from storage.models import (
     Channel,
     ChannelResult,
     Curve,
+    Reconciliation,
     Record,
     RecordMetric,
     ResultVersion,
@@ -750,6 +751,88 @@ period. On four simulated 12-day campaigns (seeds 2–5, spall on teeth 5, 11, 2
 10) a 0.02 Np floor raised warnings or alarms on the tooth before the spalled one as well
 (+0.2 Np from the edge of its well); with 0.1 Np only the spalled tooth is flagged: an alarm
 on day 11 (two campaigns) or a warning on day 12 (two campaigns, smaller wells)."""
+
+
+class ReconciliationRepository:
+    """Physics reconciliations of stored records: queued → running → done | failed."""
+
+    def __init__(self, session: Session) -> None:
+        self.session = session
+
+    def get(self, reconciliation_id: int) -> Reconciliation:
+        return _get(self.session, Reconciliation, reconciliation_id, "reconciliation")
+
+    def add(
+        self,
+        record: Record,
+        *,
+        options: dict[str, Any],
+        code_version: str,
+        model_toml: str | None = None,
+        reference: Record | None = None,
+    ) -> Reconciliation:
+        """A queued reconciliation of ``record`` (``model_toml`` None: the rig's default model)."""
+        row = Reconciliation(
+            record_id=record.id,
+            reference_record_id=None if reference is None else reference.id,
+            status="queued",
+            options=json_safe(options),
+            model_toml=model_toml,
+            code_version=code_version,
+            created_at=utcnow(),
+        )
+        self.session.add(row)
+        self.session.flush()
+        return row
+
+    def list_for_record(self, record_id: int) -> builtins.list[Reconciliation]:
+        """Newest first."""
+        query = (
+            sa.select(Reconciliation)
+            .where(Reconciliation.record_id == record_id)
+            .order_by(Reconciliation.created_at.desc(), Reconciliation.id.desc())
+        )
+        return list(self.session.scalars(query))
+
+    def start(self, row: Reconciliation, code_version: str) -> bool:
+        """Mark ``row`` running with the code that runs it; False when it already finished
+        (a message delivered twice). A ``running`` row is started again: its worker died."""
+        if row.status in ("done", "failed"):
+            return False
+        row.status = "running"
+        row.code_version = code_version
+        row.started_at = utcnow()
+        row.error = ""
+        self.session.flush()
+        return True
+
+    def finish(
+        self,
+        row: Reconciliation,
+        *,
+        model_toml: str,
+        result: dict[str, Any],
+        report_html: str,
+        updated_model_toml: str,
+    ) -> Reconciliation:
+        row.status = "done"
+        row.model_toml = model_toml
+        row.result = json_safe(result)
+        row.report_html = report_html
+        row.updated_model_toml = updated_model_toml
+        row.error = ""
+        row.finished_at = utcnow()
+        self.session.flush()
+        return row
+
+    def fail(self, row: Reconciliation, reason: str, *, model_toml: str | None = None) -> Reconciliation:
+        row.status = "failed"
+        row.error = reason or "failed"
+        if model_toml is not None:
+            row.model_toml = model_toml
+        row.finished_at = utcnow()
+        self.session.flush()
+        return row
 
 
 class AlarmRuleRepository:
