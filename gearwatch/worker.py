@@ -1,4 +1,5 @@
-"""Dramatiq actor running the per-record job on workers fed through RabbitMQ.
+"""Dramatiq actors running the per-record job (and physics reconciliations of stored records,
+:func:`reconcile_record`) on workers fed through RabbitMQ.
 
 Start workers with the broker, database and raw store of the service::
 
@@ -32,6 +33,9 @@ logger = logging.getLogger(__name__)
 
 QUEUE_NAME = os.environ.get("GEARWATCH_QUEUE", "gearwatch-records")
 ACTOR_NAME = "process_record"
+RECONCILE_ACTOR_NAME = "reconcile_record"
+RECONCILE_TIME_LIMIT_MS = 60 * 60 * 1000
+"""A reconciliation runs minutes (the simulator is in the loop); Dramatiq's default limit is 10."""
 INTEGRITY_RETRIES = 3
 
 
@@ -119,4 +123,36 @@ def process_record(campaign: str, path: str, **options: Any) -> None:
 def enqueue_record(campaign: str, path: str, **options: Any) -> str:
     """Put one per-record job on the queue; returns the message id."""
     message = process_record.send(campaign, str(path), **options)
+    return str(message.message_id)
+
+
+def run_reconciliation_job(
+    reconciliation_id: int, *, database_url: str | None = None, raw_store: str | None = None
+) -> str:
+    """The job a ``reconcile_record`` message asks for; returns the final status."""
+    from gearwatch.reconcile_job import run_reconciliation
+    from service.settings import Settings
+    from storage.raw_store import RawStore
+
+    settings = Settings()
+    factory = _session_factory(database_url or settings.database_url)
+    return run_reconciliation(factory, RawStore(raw_store or settings.raw_store), reconciliation_id)
+
+
+@dramatiq.actor(
+    actor_name=RECONCILE_ACTOR_NAME, queue_name=QUEUE_NAME, max_retries=3,
+    time_limit=RECONCILE_TIME_LIMIT_MS,
+)
+def reconcile_record(reconciliation_id: int, **options: Any) -> None:
+    """Dramatiq actor: :func:`run_reconciliation_job` (physics reconciliation of a stored record).
+
+    Idempotent: a finished reconciliation is left alone; one left ``running`` by a worker that
+    died is run again."""
+    status = run_reconciliation_job(reconciliation_id, **options)
+    logger.info("reconciliation %s: %s", reconciliation_id, status)
+
+
+def enqueue_reconciliation(reconciliation_id: int, **options: Any) -> str:
+    """Put one reconciliation job on the queue; returns the message id."""
+    message = reconcile_record.send(int(reconciliation_id), **options)
     return str(message.message_id)

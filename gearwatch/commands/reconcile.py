@@ -67,17 +67,24 @@ def default_model(campaign: Any, sample_rate_hz: float) -> Any:
 
 def measured_record(path: str, campaign: Any, channel: str | None) -> Any:
     """Read a record and return a :class:`MeasuredRecord` of one accelerometer channel."""
-    import numpy as np
-
-    from dsp.tach import TachometerError, pulse_times_from_waveform
     from gearwatch.errors import InputError
     from ingest.sources import read_record
-    from physics.reconcile import MeasuredRecord
 
     record_path = Path(path)
     if not record_path.is_file():
         raise InputError(f"{record_path}: no such record file")
-    record = read_record(record_path, campaign)
+    return measured_from_record(read_record(record_path, campaign), campaign, channel, str(record_path))
+
+
+def measured_from_record(record: Any, campaign: Any, channel: str | None, source: str) -> Any:
+    """The :class:`MeasuredRecord` of one accelerometer channel of an already-read record
+    (:class:`ingest.types.RecordData`); ``source`` names the record in error messages."""
+    import numpy as np
+
+    from dsp.tach import TachometerError, pulse_times_from_waveform
+    from gearwatch.errors import InputError
+    from physics.reconcile import MeasuredRecord
+
     tach = campaign.tachometer
     if tach is None:
         raise InputError("the manifest has no [tachometer]: reconciliation needs a pinion reference")
@@ -94,7 +101,7 @@ def measured_record(path: str, campaign: Any, channel: str | None) -> Any:
     try:
         pulses = pulse_times_from_waveform(raw, fs) if tach.kind == "pulses" else raw
     except (TachometerError, ValueError) as error:
-        raise InputError(f"{record_path}: tachometer: {error}") from None
+        raise InputError(f"{source}: tachometer: {error}") from None
     signal = np.asarray(record.channel(name), dtype=np.float64)
     return MeasuredRecord(signal, fs, np.asarray(pulses, dtype=np.float64), tach.pulses_per_rev)
 
