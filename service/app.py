@@ -35,6 +35,11 @@ OPENAPI_TAGS = [
     {"name": "rigs", "description": "Test rigs and their per-tooth trends."},
     {"name": "campaigns", "description": "Campaigns (a manifest: rig, channels, tachometer)."},
     {"name": "records", "description": "Record files: upload, re-process, results, curves."},
+    {
+        "name": "reconciliations",
+        "description": "Physics reconciliation of a stored record: simulator vs recording, the "
+        "missing physics named and fitted (issue 6).",
+    },
     {"name": "alarms", "description": "Alarms, their history, acknowledgement and rules."},
     {"name": "admin", "description": "API keys and the audit log (admin role)."},
 ]

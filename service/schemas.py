@@ -429,3 +429,101 @@ class AuditOut(BaseModel):
 
 class AuditList(BaseModel):
     items: list[AuditOut]
+
+
+ReconciliationStatus = Literal["queued", "running", "done", "failed"]
+MechanismName = Annotated[str, Field(min_length=1, max_length=64, pattern=NAME_PATTERN)]
+
+
+class ReconciliationIn(BaseModel):
+    """A physics reconciliation of a stored record (issue 6; docs/reconciliation.md)."""
+
+    model_config = ConfigDict(extra="forbid")
+    model_toml: str | None = Field(
+        default=None,
+        max_length=1_000_000,
+        pattern=r"^[^\x00]*$",
+        description="Simulator configuration TOML (`gearwatch simulate --print-model`); its "
+        "tooth counts must be the rig's. Default: the rig's default model.",
+    )
+    reference_record_id: int | None = Field(
+        default=None,
+        ge=1,
+        le=2**31 - 1,
+        description="A healthy record of the same rig: its residual is treated as known "
+        "model-form error and only the change is explained.",
+    )
+    channel: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=200,
+        pattern=NAME_PATTERN,
+        description="Accelerometer channel (default: the manifest's first).",
+        examples=["acc1"],
+    )
+    mechanisms: list[MechanismName] | None = Field(
+        default=None,
+        max_length=32,
+        description="Catalogue names to try (default: every fitted plug-in).",
+        examples=[["pinion_eccentricity", "tooth_spall"]],
+    )
+    samples_per_mesh: int = Field(default=64, ge=8, le=1024)
+    max_frequency_hz: float | None = Field(
+        default=None, gt=0, le=1e6, description="Highest frequency fitted (default 0.4 × fs)."
+    )
+    max_findings: int = Field(default=4, ge=0, le=16)
+    forward_oversampling: int | None = Field(
+        default=None,
+        ge=1,
+        le=256,
+        description="Integrator steps per sample of the fitting simulations (default: the "
+        "model's); coarser is faster.",
+    )
+
+
+class ReconciliationProvenance(BaseModel):
+    raw_sha256: str = Field(description="sha256 of the record's raw file.")
+    reference_raw_sha256: str | None = None
+    code_version: str = Field(description="The code that ran it (that queued it, until then).")
+
+
+class ReconciliationLinks(BaseModel):
+    self: str
+    record: str
+    report: str
+    model: str
+
+
+class ReconciliationOut(BaseModel):
+    id: int = Field(examples=[7])
+    record_id: int = Field(examples=[42])
+    reference_record_id: int | None = None
+    status: ReconciliationStatus
+    options: dict[str, Any] = Field(
+        examples=[{"samples_per_mesh": 64, "max_frequency_hz": None, "max_findings": 4,
+                   "mechanisms": None, "channel": "acc1", "forward_oversampling": None}]
+    )
+    provenance: ReconciliationProvenance
+    outcome: str | None = Field(
+        default=None,
+        description="The result's status once done: explained, partly_explained, not_explained.",
+    )
+    error: str | None = Field(default=None, description="Why it failed.")
+    created_at: dt.datetime
+    started_at: dt.datetime | None = None
+    finished_at: dt.datetime | None = None
+    links: ReconciliationLinks
+
+
+class ReconciliationDetail(ReconciliationOut):
+    result: dict[str, Any] | None = Field(
+        default=None, description="The issue-6 JSON (status, baseline, mismatches, findings, "
+        "unresolved, final) once done."
+    )
+    model_toml: str | None = Field(
+        default=None, description="The simulator configuration used as the base."
+    )
+
+
+class ReconciliationList(BaseModel):
+    items: list[ReconciliationOut]
