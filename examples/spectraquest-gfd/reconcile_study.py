@@ -14,7 +14,8 @@ The SpectraQuest records have no tachometer and no documented sampling rate. For
 4. runs ``physics.reconcile.reconcile(record, model, reference=healthy)`` with a 32/80
    :class:`GearPairModel`, and a control (healthy vs the healthy record of the next load);
 5. prints plain indicators (residual kurtosis of the pinion and gear averages, worst-tooth MCI
-   depth) healthy vs broken, independent of the reconciliation.
+   depth) healthy vs broken, independent of the reconciliation, and whether each shaft's
+   tooth-specific pattern is the same in both records (:func:`shaft_matches`).
 
 Run: ``python examples/spectraquest-gfd/reconcile_study.py [--loads 0,50,90] [--json OUT]``.
 The data directory is ``$GEARWATCH_SHARED_DIR/data/real/spectraquest-gfd`` (default: the
@@ -161,6 +162,36 @@ def align_to_reference(
     return shifted, Alignment(best, float(per_mesh[best]), float(others.max()))
 
 
+@dataclass(frozen=True)
+class ShaftMatch:
+    correlation: float
+    """Best correlation of the two records' residual averages of one shaft over whole-tooth shifts."""
+    shift_teeth: int
+    runner_up: float
+
+
+def shaft_matches(
+    signal: FloatArray, pulses: FloatArray, ref_signal: FloatArray, ref_pulses: FloatArray, sample_rate_hz: float
+) -> dict[str, ShaftMatch]:
+    """Does each shaft look the same in both records? Per shaft (32-tooth "pinion", 80-tooth
+    "gear"): the synchronous average with its mesh harmonics removed (the tooth-specific
+    content: runout, tooth-to-tooth differences), correlated over all whole-tooth shifts."""
+    out = {}
+    for wheel, teeth, ratio in (("pinion", PINION_TEETH, 1.0), ("gear", GEAR_TEETH, PINION_TEETH / GEAR_TEETH)):
+        spr = teeth * 16
+        averages = []
+        for x, p in ((signal, pulses), (ref_signal, ref_pulses)):
+            average = angle_resample(x, sample_rate_hz, p, 1, spr, shaft_ratio=ratio).mean(axis=0)
+            residual = residual_signal(average, teeth)
+            residual = residual - residual.mean()
+            averages.append(residual / np.linalg.norm(residual))
+        a, b = averages
+        corr = np.fft.irfft(np.conj(np.fft.rfft(b)) * np.fft.rfft(a), n=spr)[::16]
+        best = int(np.argmax(corr))
+        out[wheel] = ShaftMatch(float(corr[best]), best, float(np.delete(corr, best).max()))
+    return out
+
+
 # ----------------------------------------------------------------------------- tooth counts
 
 
@@ -225,6 +256,7 @@ class PairResult:
     alignment: Alignment
     result: ReconciliationResult | None
     indicators: dict[str, dict[str, float]] = field(default_factory=dict)
+    shaft_match: dict[str, ShaftMatch] = field(default_factory=dict)
     seconds: float = 0.0
 
     def summary(self) -> dict[str, Any]:
@@ -237,6 +269,7 @@ class PairResult:
             },
             "mesh_line_db": [self.record_pulses.line_prominence_db, self.reference_pulses.line_prominence_db],
             "alignment": dataclasses.asdict(self.alignment),
+            "shaft_match": {k: dataclasses.asdict(v) for k, v in self.shaft_match.items()},
             "indicators": self.indicators,
             "seconds": self.seconds,
         }
@@ -255,6 +288,7 @@ class PairResult:
                     "reference_fit": data["reference"],
                     "unresolved": data["unresolved"],
                     "hunting_periods": data["record"]["hunting_periods"],
+                    "top_candidates": self.result.candidates_scored,
                 }
             )
         return out
@@ -281,6 +315,7 @@ def study_pair(
         reference: plain_indicators(reference_signal, sample_rate_hz, ref_est.pulse_times_s),
         record: plain_indicators(record_signal, sample_rate_hz, rec_pulses),
     }
+    match = shaft_matches(record_signal, rec_pulses, reference_signal, ref_est.pulse_times_s, sample_rate_hz)
     result = None
     if run_reconcile:
         result = reconcile(
@@ -297,6 +332,7 @@ def study_pair(
         alignment=alignment,
         result=result,
         indicators=indicators,
+        shaft_match=match,
         seconds=time.perf_counter() - t0,
     )
 
@@ -348,8 +384,10 @@ def _print_row(row: dict[str, Any]) -> None:
         f"{row['record']} vs {row['reference']}: {row.get('status')} χ²/dof {row.get('baseline_chi2_dof')} → "
         f"{row.get('final_chi2_dof')} (bounds {row.get('chi2_dof_bounds')}), excess explained "
         f"{row.get('excess_explained')}, align {row['alignment']}, {row['seconds']:.0f} s\n"
+        f"    shaft match: {json.dumps(row['shaft_match'])}\n"
         f"    findings: {findings}\n"
         f"    mismatches: {json.dumps(row.get('mismatches'))}\n"
+        f"    top candidates: {json.dumps(row.get('top_candidates'))}\n"
         f"    indicators: {json.dumps(ind)}",
         flush=True,
     )

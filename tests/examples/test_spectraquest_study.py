@@ -53,6 +53,22 @@ def test_tachless_pulse_period_matches_readme(pair: tuple[np.ndarray, np.ndarray
         assert estimate.line_prominence_db > 20.0
     assert 0 <= result.alignment.mesh_periods < 160
     assert set(result.indicators) == {"b30hz0", "h30hz0"}
+    assert set(result.shaft_match) == {"pinion", "gear"}
+
+
+def test_same_gearbox_matches_across_loads_broken_does_not() -> None:
+    # The study's frame argument: two healthy records (0 and 10 % load) show the same
+    # tooth-specific pattern on both shafts (measured 0.95 / 0.90); healthy vs broken at the
+    # same load do not (0.28 / 0.18), so the broken records are not "healthy + one tooth".
+    healthy0, healthy10, broken0 = (study.load_signal(n) for n in ("h30hz0", "h30hz10", "b30hz0"))
+    p0, p10, pb = (study.tachless_pulses(x).pulse_times_s for x in (healthy0, healthy10, broken0))
+    fs = study.ASSUMED_SAMPLE_RATE_HZ
+    same = study.shaft_matches(healthy10, p10, healthy0, p0, fs)
+    other = study.shaft_matches(broken0, pb, healthy0, p0, fs)
+    for wheel in ("pinion", "gear"):
+        assert same[wheel].correlation > 0.8
+        assert same[wheel].correlation > same[wheel].runner_up + 0.3
+        assert other[wheel].correlation < 0.5
 
 
 def test_gear_tooth_count_from_sidebands() -> None:
