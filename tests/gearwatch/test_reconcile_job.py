@@ -43,6 +43,9 @@ def stored(db_engine: sa.Engine, manifest: Path, tmp_path: Path) -> tuple[dict[s
         return fx.ingest(session, manifest, store), store
 
 
+# One real reconciliation per backend in the suite: here on SQLite; on PostgreSQL through the
+# REST tests (tests/service/test_reconciliations.py: the service's runner and a Dramatiq worker).
+@pytest.mark.parametrize("db_url", ["sqlite"], indirect=True)
 def test_reconciliation_names_the_eccentricity_and_stores_json_report_and_model(
     db_engine: sa.Engine, stored: tuple[dict[str, int], RawStore]
 ) -> None:
@@ -54,10 +57,11 @@ def test_reconciliation_names_the_eccentricity_and_stores_json_report_and_model(
         row = create_reconciliation(session, ids[fx.RECORD], FAST, raw_store=store)
         session.commit()
         assert (row.status, row.model_toml, row.result) == ("queued", None, None)
-    started = time.perf_counter()
+    cpu = time.process_time()
     assert run_reconciliation(factory, store, row.id) == "done"
-    elapsed = time.perf_counter() - started
-    assert elapsed < 60, f"the fast reconciliation took {elapsed:.1f} s"
+    cpu = time.process_time() - cpu
+    # ~12 s of CPU on the development machine (NUMBA_NUM_THREADS=1): a gross slow-down fails.
+    assert cpu < 40, f"the fast reconciliation took {cpu:.1f} s of CPU"
 
     with factory() as session:
         done = ReconciliationRepository(session).get(row.id)

@@ -76,16 +76,17 @@ def post(api: Api, record_id: int, body: dict[str, Any], role: str = "operator")
     )
 
 
-@pytest.mark.parametrize("db_url", ["sqlite"], indirect=True)
+# One real reconciliation per backend in the suite: SQLite in tests/gearwatch/test_reconcile_job.py.
+@pytest.mark.parametrize("db_url", ["postgresql"], indirect=True)
 def test_reconciliation_runs_after_the_response_and_is_served(api: Api, stored: Stored) -> None:
     """Inline runner: 202 queued, then (the job runs once the response is sent) done, with the
     eccentricity found, its provenance, the HTML report and the updated model."""
     from physics.config import model_from_toml, model_to_toml
 
     model_toml = model_to_toml(fx.base_model())
-    started = time.perf_counter()
+    cpu = time.process_time()
     response = post(api, stored.record, {**fx.FAST_OPTIONS, "model_toml": model_toml})
-    elapsed = time.perf_counter() - started
+    cpu = time.process_time() - cpu  # the test client returns once the background job is done
     assert response.status_code == 202, response.text
     queued = response.json()
     assert queued["status"] == "queued" and queued["record_id"] == stored.record
@@ -94,7 +95,7 @@ def test_reconciliation_runs_after_the_response_and_is_served(api: Api, stored: 
     url = queued["links"]["self"]
     assert url == f"/api/v1/reconciliations/{queued['id']}"
     assert queued["links"]["report"] == url + "/report" and queued["links"]["model"] == url + "/model"
-    assert elapsed < 60, f"the fast reconciliation took {elapsed:.1f} s"
+    assert cpu < 40, f"the fast reconciliation took {cpu:.1f} s of CPU"
 
     done = api.get(url).json()
     assert done["status"] == "done", done
