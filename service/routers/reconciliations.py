@@ -41,7 +41,7 @@ def _out(row: Reconciliation, *, details: bool = False) -> schemas.Reconciliatio
             code_version=row.code_version,
         ),
         "outcome": (row.result or {}).get("status") if row.status == "done" else None,
-        "error": row.error or None if row.status == "failed" else None,
+        "error": (row.error or None) if row.status == "failed" else None,
         "created_at": row.created_at,
         "started_at": row.started_at,
         "finished_at": row.finished_at,
