@@ -3,7 +3,6 @@ campaign → :func:`physics.reconcile.reconcile` → JSON, HTML report and updat
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import pytest
@@ -57,11 +56,7 @@ def test_reconciliation_names_the_eccentricity_and_stores_json_report_and_model(
         row = create_reconciliation(session, ids[fx.RECORD], FAST, raw_store=store)
         session.commit()
         assert (row.status, row.model_toml, row.result) == ("queued", None, None)
-    cpu = time.process_time()
     assert run_reconciliation(factory, store, row.id) == "done"
-    cpu = time.process_time() - cpu
-    # ~12 s of CPU on the development machine (NUMBA_NUM_THREADS=1): a gross slow-down fails.
-    assert cpu < 40, f"the fast reconciliation took {cpu:.1f} s of CPU"
 
     with factory() as session:
         done = ReconciliationRepository(session).get(row.id)

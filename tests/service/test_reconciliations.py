@@ -84,9 +84,7 @@ def test_reconciliation_runs_after_the_response_and_is_served(api: Api, stored: 
     from physics.config import model_from_toml, model_to_toml
 
     model_toml = model_to_toml(fx.base_model())
-    cpu = time.process_time()
     response = post(api, stored.record, {**fx.FAST_OPTIONS, "model_toml": model_toml})
-    cpu = time.process_time() - cpu  # the test client returns once the background job is done
     assert response.status_code == 202, response.text
     queued = response.json()
     assert queued["status"] == "queued" and queued["record_id"] == stored.record
@@ -95,7 +93,6 @@ def test_reconciliation_runs_after_the_response_and_is_served(api: Api, stored: 
     url = queued["links"]["self"]
     assert url == f"/api/v1/reconciliations/{queued['id']}"
     assert queued["links"]["report"] == url + "/report" and queued["links"]["model"] == url + "/model"
-    assert cpu < 40, f"the fast reconciliation took {cpu:.1f} s of CPU"
 
     done = api.get(url).json()
     assert done["status"] == "done", done
