@@ -192,6 +192,32 @@ def shaft_matches(
     return out
 
 
+def worst_tooth_across_loads(condition: str, loads: tuple[int, ...] = LOADS) -> dict[str, list[tuple[int, float]]]:
+    """Per shaft, the tooth with the most residual energy at every load, all loads in the frame
+    of the load-0 record of the same condition ("h" or "b"), with its robust z-score
+    ((max − median) / (1.4826 MAD) of the per-tooth RMS). A damaged tooth would stay the
+    same tooth across loads; tooth numbers are relative to the load-0 record's origin."""
+    base = load_signal(f"{condition}30hz{loads[0]}")
+    base_pulses = tachless_pulses(base).pulse_times_s
+    signals = {load: load_signal(f"{condition}30hz{load}") for load in loads}
+    pulses = {load: tachless_pulses(x).pulse_times_s for load, x in signals.items()}
+    out: dict[str, list[tuple[int, float]]] = {}
+    for wheel, teeth, ratio in (("pinion", PINION_TEETH, 1.0), ("gear", GEAR_TEETH, PINION_TEETH / GEAR_TEETH)):
+        spr = teeth * 16
+        ref = residual_signal(angle_resample(base, ASSUMED_SAMPLE_RATE_HZ, base_pulses, 1, spr, shaft_ratio=ratio).mean(axis=0), teeth)
+        rows = []
+        for load in loads:
+            revs = angle_resample(signals[load], ASSUMED_SAMPLE_RATE_HZ, pulses[load], 1, spr, shaft_ratio=ratio)
+            residual = residual_signal(revs.mean(axis=0), teeth)
+            corr = np.fft.irfft(np.conj(np.fft.rfft(ref)) * np.fft.rfft(residual), n=spr)[::16]
+            residual = np.roll(residual, -16 * int(np.argmax(corr)))  # into the load-0 frame
+            energy = np.sqrt((residual.reshape(teeth, 16) ** 2).mean(axis=1))
+            mad = 1.4826 * float(np.median(np.abs(energy - np.median(energy))))
+            rows.append((int(np.argmax(energy)) + 1, float((energy.max() - np.median(energy)) / mad)))
+        out[wheel] = rows
+    return out
+
+
 # ----------------------------------------------------------------------------- tooth counts
 
 
@@ -349,13 +375,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--loads", default=",".join(str(x) for x in LOADS))
     parser.add_argument("--json", dest="json_out", help="write every pair's summary here")
     parser.add_argument("--max-findings", type=int, default=2)
-    parser.add_argument("--no-control", action="store_true")
+    parser.add_argument(
+        "--controls",
+        default="0:10",
+        help="same-condition controls REF:REC[,REF:REC...] (loads), run healthy and broken; '' for none",
+    )
+    parser.add_argument("--teeth", action="store_true", help="print worst_tooth_across_loads and stop")
     args = parser.parse_args(argv)
     loads = [int(x) for x in args.loads.split(",") if x.strip()]
+    controls = [tuple(int(v) for v in c.split(":")) for c in args.controls.split(",") if c.strip()]
     directory = data_dir()
     if not directory.is_dir():
         print(f"no data directory {directory} (set GEARWATCH_SHARED_DIR)", file=sys.stderr)
         return 2
+    if args.teeth:
+        for condition in ("h", "b"):
+            for wheel, rows in worst_tooth_across_loads(condition).items():
+                cells = " ".join(f"{tooth}({z:.1f})" for tooth, z in rows)
+                print(f"{condition}30hz* {wheel}: worst tooth (z) at loads {LOADS}: {cells}")
+        return 0
     options = study_options(args.max_findings)
     rows = []
     for load in loads:
@@ -363,15 +401,15 @@ def main(argv: list[str] | None = None) -> int:
         pair = study_pair(load_signal(broken), load_signal(healthy), record=broken, reference=healthy, options=options)
         rows.append(pair.summary())
         _print_row(rows[-1])
-    if not args.no_control and loads:
-        load = loads[0]
-        other = LOADS[(LOADS.index(load) + 1) % len(LOADS)]
-        healthy, control = f"h30hz{load}", f"h30hz{other}"
-        pair = study_pair(load_signal(control), load_signal(healthy), record=control, reference=healthy, options=options)
-        summary = pair.summary()
-        summary["control"] = True
-        rows.append(summary)
-        _print_row(summary)
+    # Controls: the same gearbox at another load (healthy vs healthy, broken vs broken).
+    for ref_load, rec_load in controls:
+        for condition in ("h", "b"):
+            ref, rec = f"{condition}30hz{ref_load}", f"{condition}30hz{rec_load}"
+            pair = study_pair(load_signal(rec), load_signal(ref), record=rec, reference=ref, options=options)
+            summary = pair.summary()
+            summary["control"] = True
+            rows.append(summary)
+            _print_row(summary)
     if args.json_out:
         Path(args.json_out).write_text(json.dumps(rows, indent=1, default=float) + "\n", encoding="utf-8")
     return 0
