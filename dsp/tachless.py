@@ -466,7 +466,10 @@ def tachless_shaft_angle(
         Teeth on the shaft whose angle is wanted.
     approx_shaft_hz : float, optional
         Rough shaft speed (±``search_fraction``); default: :func:`estimate_shaft_hz` over
-        ``[20 / duration, 0.45 fs / (harmonic × mesh_order)]``.
+        ``[20 / duration, 0.45 fs / (harmonic × mesh_order)]``. Give it when you can: the comb
+        needs lines at the shaft's own orders (sidebands, runout) — a pure mesh tone has none —
+        and with two shafts in the spectrum it may lock on the other one (on SpectraQuest it
+        often finds the 80-tooth shaft, 0.4 × the 32-tooth one).
     harmonic : int
         Mesh harmonic to demodulate (pick the cleanest, usually the strongest).
     bandwidth_orders : float

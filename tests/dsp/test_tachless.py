@@ -113,6 +113,10 @@ def test_shaft_speed_and_tooth_count_from_lines() -> None:
             x += amplitude * 0.3 ** abs(sideband) * np.cos(2 * np.pi * order * shaft_hz * t + rng.uniform(0, 6))
     assert estimate_shaft_hz(x, fs, min_shaft_hz=10.0, max_shaft_hz=60.0) == pytest.approx(30.0, rel=1e-4)
     assert estimate_mesh_order(x, fs, 30.0) == teeth
+    # Without a speed hint the pulses come from the comb's speed and the mesh line.
+    pulses = shaft_pulse_times_from_mesh(x, fs, teeth)
+    np.testing.assert_allclose(np.diff(pulses), 1 / shaft_hz, rtol=1e-3)  # in-band noise jitter
+    assert float(np.mean(np.diff(pulses))) == pytest.approx(1 / shaft_hz, rel=1e-5)
 
 
 def test_white_noise_is_refused() -> None:
