@@ -68,6 +68,11 @@ class Mesh:
     both average to k' over the path, so the mean mesh stiffness is unchanged."""
     stiffness_profile_variation: float = 0.0
     """The coefficient ``a`` of ``stiffness_profile`` (k' must stay > 0 along the path)."""
+    contact_loss: bool = True
+    """Teeth separate when the approach is lost (unit-step contact, as always). False: a
+    linearised mesh — every contact-line piece in the geometric contact zone keeps its
+    stiffness even when separated (tension allowed), the usual simplification of linear
+    simulators; it cannot show loss of contact at light load or near resonance."""
 
 
 @dataclass(frozen=True)
@@ -117,6 +122,12 @@ class Operating:
     speed_fluctuation_fraction: float = 0.0
     """Amplitude of a sinusoidal fluctuation of the speed reference, relative to nominal."""
     speed_fluctuation_hz: float = 0.5
+    """Frequency of that fluctuation when ``speed_fluctuation_order`` is 0 (not synchronous)."""
+    speed_fluctuation_order: int = 0
+    """0: the fluctuation is at ``speed_fluctuation_hz``. n ≥ 1: it is locked to the pinion
+    shaft, n cycles per pinion revolution (motor cogging, a cardan joint):
+    ω_ref = Ω (1 + fraction · cos(n θ_pinion + phase)), θ_pinion = 0 at the tach mark."""
+    speed_fluctuation_phase_deg: float = 0.0
     load_fluctuation_fraction: float = 0.0
     """Amplitude of a load-torque fluctuation locked to the output shaft angle, relative to mean."""
     load_fluctuation_order: int = 1
@@ -276,6 +287,10 @@ def _convert(value: Any, hint: Any, where: str) -> Any:
         if not math.isfinite(value):
             raise ModelConfigError(f"{where}: must be finite")
         return float(value)
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise ModelConfigError(f"{where}: expected true or false, got {type(value).__name__}")
+        return value
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ModelConfigError(f"{where}: expected an integer, got {type(value).__name__}")
@@ -350,6 +365,8 @@ def validate_model(model: GearPairModel) -> None:
     mesh = model.mesh
     if not mesh.friction_coefficient >= 0:
         raise ModelConfigError("mesh.friction_coefficient must be ≥ 0")
+    if model.operating.speed_fluctuation_order < 0:
+        raise ModelConfigError("operating.speed_fluctuation_order must be ≥ 0")
     a = mesh.stiffness_profile_variation
     lowest = {
         "constant": 1.0,

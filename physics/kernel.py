@@ -8,9 +8,10 @@ Newmark average acceleration (β = 1/4, γ = 1/2, unconditionally stable) on the
 where the integral runs over the contact lines on the base plane (z across the face),
 ``g`` collects eccentricity and the normal deviations (tip relief, pitch errors, spalls)
 and H is the unit step: a part of a line whose deviation exceeds the local approach
-carries no load (contact loss, not linearised away). Because V is affine in z, the mesh
-stiffness matrix is U S Uᵀ with U = [V0 V1] and a 2×2 S, and each step solves with the
-constant ``A⁻¹`` (A = 4M/h² + 2C/h + K) plus a rank-2 Woodbury correction. The contact set
+carries no load (contact loss, not linearised away; ``p[P_LINEAR_MESH]`` = 1 sets H ≡ 1
+over the geometric contact zone: the linearised mesh of many simulators, tension allowed).
+Because V is affine in z, the mesh stiffness matrix is U S Uᵀ with U = [V0 V1] and a 2×2 S,
+and each step solves with the constant ``A⁻¹`` (A = 4M/h² + 2C/h + K) plus a rank-2 Woodbury correction. The contact set
 is found by iterating until it no longer changes; contact intervals on a line are exact
 (δ is linear in z), and pair entry/exit and spall edges are averaged over the step's
 travel so that events are not quantised to the step.
@@ -19,6 +20,8 @@ Sliding friction (Coulomb, μ·s·N per contact line across the line of action, 
 the sliding velocity, which reverses at the pitch point) enters F(t) explicitly from the
 normal loads at the Newmark predictor; a stiffness-per-length profile along the path of
 contact scales each line's k; an anisotropic support is a full 2×2 radial block in K and C.
+The motor's speed reference may fluctuate in time (Hz) or, with ``p[P_FLUCT_ORDER]`` = n ≥ 1,
+at n × the pinion-shaft order, phase-locked to the pinion angle.
 
 This is an internal module: :mod:`physics.simulator` assembles the arrays.
 """
@@ -41,7 +44,10 @@ P_TACH_OFFSET = 33
 # Extensions (issue 6): sliding friction, stiffness profile, anisotropic supports.
 P_MU, P_PITCH_POINT, P_T1T2, P_KPROFILE, P_KPROFILE_A = range(34, 39)
 P_KXY1, P_CXY1, P_KYY1, P_CYY1, P_KXY2, P_CXY2, P_KYY2, P_CYY2 = range(39, 47)
-N_PARAMS = 47
+# Speed fluctuation locked to a pinion-shaft order (0: the Hz-based one); linearised mesh
+# (1: no contact loss, tension allowed; 0: Heaviside contact as always).
+P_FLUCT_ORDER, P_FLUCT_PHASE, P_LINEAR_MESH = range(47, 50)
+N_PARAMS = 50
 
 # Values of p[P_KPROFILE].
 KPROFILE_CONSTANT, KPROFILE_LINEAR, KPROFILE_PARABOLIC = range(3)
@@ -217,26 +223,33 @@ def _contact_sums(
     p1: float,
     seg: np.ndarray,
     sums: np.ndarray,
+    linear: bool,
 ) -> None:
     """Integrals of k, k z, k z², k g, k g z and the loaded length over the loaded parts.
 
     δ(z) = p0 + p1 z + gap is linear on each piece, so the loaded part is found exactly.
     ``sums[6]`` is the margin: the smallest |δ| at the ends of pieces that are wholly in
     or wholly out of contact (0 if a piece is cut), so a later change of δ smaller than it
-    cannot change the contact set.
+    cannot change the contact set. ``linear``: every piece keeps its stiffness whatever δ
+    (a linearised mesh, tension allowed); the set never changes (margin stays 1e300).
     """
     k0 = k1 = k2 = g0 = g1 = length = 0.0
     margin = 1e300
     for i in range(n_seg):
         za, zb = seg[S_Z0, i], seg[S_Z1, i]
         c = p0 + seg[S_GAP, i]
-        da = c + p1 * za
-        db = c + p1 * zb
-        if (da > 0.0) == (db > 0.0):
-            margin = min(margin, abs(da), abs(db))
+        if linear:
+            pass
         else:
-            margin = 0.0
-        if abs(p1) < 1e-300:
+            da = c + p1 * za
+            db = c + p1 * zb
+            if (da > 0.0) == (db > 0.0):
+                margin = min(margin, abs(da), abs(db))
+            else:
+                margin = 0.0
+        if linear:
+            pass
+        elif abs(p1) < 1e-300:
             if c <= 0.0:
                 continue
         else:
@@ -276,17 +289,21 @@ def _friction_sums(
     eta: float,
     seg: np.ndarray,
     sums: np.ndarray,
+    linear: bool,
 ) -> None:
     """Sliding-sign-weighted normal loads: Σ s·N, Σ s·u·N and Σ s·∫z dN over the loaded parts.
 
     The normal load per unit length is k(δ + η δ̇) with δ = p0 + p1 z + gap and
     δ̇ = w0 + w1 z (the mesh force's own law); s is the sign of the sliding velocity.
+    ``linear``: the whole pieces, as in :func:`_contact_sums`.
     """
     n_s = n_su = m_s = 0.0
     for i in range(n_seg):
         za, zb = seg[S_Z0, i], seg[S_Z1, i]
         c = p0 + seg[S_GAP, i]
-        if abs(p1) < 1e-300:
+        if linear:
+            pass
+        elif abs(p1) < 1e-300:
             if c <= 0.0:
                 continue
         else:
@@ -393,6 +410,8 @@ def integrate(
     i_grx = dof_map[D_GEAR_RX]
     mu = p[P_MU]
     t1t2 = p[P_T1T2]
+    linear_mesh = p[P_LINEAR_MESH] != 0.0
+    fluct_order = p[P_FLUCT_ORDER]
     i_tach = i_g if tach_on_gear else i_p
     n_steps = n_warm_steps + (n_samples - 1) * oversampling
     n_rec_steps = max(1, (n_samples - 1) * oversampling)
@@ -470,7 +489,15 @@ def integrate(
         t_rec = min(max((t_next - n_warm_steps * h) / (n_rec_steps * h), 0.0), 1.0)
         omega_ref = p[P_SPEED] * (1.0 + p[P_DRIFT] * t_rec)
         if p[P_FLUCT] != 0.0:
-            omega_ref += p[P_SPEED] * p[P_FLUCT] * math.sin(two_pi * p[P_FLUCT_HZ] * t_next)
+            if fluct_order > 0.0:
+                # Locked to the pinion angle (motor cogging, a cardan joint): synchronous,
+                # so it survives the angle-domain average.
+                th_ref = x[i_p] + h * v[i_p]
+                omega_ref += p[P_SPEED] * p[P_FLUCT] * math.cos(
+                    fluct_order * th_ref + p[P_FLUCT_PHASE]
+                )
+            else:
+                omega_ref += p[P_SPEED] * p[P_FLUCT] * math.sin(two_pi * p[P_FLUCT_HZ] * t_next)
         # Kinematics from the predictor: the mesh position follows the actual rotation.
         th1 = x[i_p] + h * v[i_p] + 0.5 * h * h * acc[i_p]
         th2 = x[i_g] + h * v[i_g] + 0.5 * h * h * acc[i_g]
@@ -519,7 +546,7 @@ def integrate(
                 pw0 += v0[i] * v_pred
                 pw1 += v1[i] * v_pred
             _friction_sums(
-                n_seg, pp0, pp1, pw0, pw1, eta, seg, fric,
+                n_seg, pp0, pp1, pw0, pw1, eta, seg, fric, linear_mesh,
             )  # fmt: skip
             r[i_p] -= mu * fric[1]
             r[i_g] += mu * (t1t2 * fric[0] - fric[1])
@@ -561,7 +588,7 @@ def integrate(
                 # δ moved less than the margin: the contact set cannot have changed.
                 settled = True
                 break
-            _contact_sums(n_seg, p0e, p1e, seg, sums)
+            _contact_sums(n_seg, p0e, p1e, seg, sums, linear_mesh)
             if it > 0:
                 same = True
                 for k in range(5):
@@ -619,7 +646,7 @@ def integrate(
         friction_force = 0.0
         if mu > 0.0:
             _friction_sums(
-                n_seg, p0e, p1e, w0, w1, eta, seg, fric,
+                n_seg, p0e, p1e, w0, w1, eta, seg, fric, linear_mesh,
             )  # fmt: skip
             friction_force = mu * fric[0]
         if i_px >= 0:

@@ -9,7 +9,8 @@ times faster than the output rate; the accelerometer is the bearing force throug
 structural modes, low-passed (anti-alias) on the fine grid and only then decimated.
 Optional (issue 6): Coulomb sliding friction at the contact, anisotropic wheel supports, a
 mesh stiffness profile along the path of contact, sensors on the bearing force across the
-line of action.
+line of action, a speed fluctuation locked to a pinion-shaft order, and a linearised mesh
+without contact loss (``Mesh.contact_loss = False``).
 
 Examples
 --------
@@ -564,6 +565,9 @@ def simulate(
     p[kernel.P_DRIFT] = op.speed_drift_fraction
     p[kernel.P_FLUCT] = op.speed_fluctuation_fraction
     p[kernel.P_FLUCT_HZ] = op.speed_fluctuation_hz
+    p[kernel.P_FLUCT_ORDER] = float(op.speed_fluctuation_order)
+    p[kernel.P_FLUCT_PHASE] = math.radians(op.speed_fluctuation_phase_deg)
+    p[kernel.P_LINEAR_MESH] = 0.0 if model.mesh.contact_loss else 1.0
     p[kernel.P_CONTROL_GAIN] = asm.control_gain
     p[kernel.P_TORQUE_FF] = op.load_torque_nm * rb1 / rb2
     if model.mesh.friction_coefficient > 0:
