@@ -18,6 +18,20 @@ Signatures (see ``docs/reconciliation.md`` and ``shared/docs/physics-signatures.
 * ``profile_modification``: tip relief on every tooth: mesh harmonics only.
 * ``structural_mode``: a transfer-path resonance the configuration lacks: a bump fixed in Hz.
 * ``load_fluctuation``: output torque modulated at an output-shaft order: AM sidebands.
+* ``sliding_friction``: Coulomb friction μ·N across the line of action, reversing at the pitch
+  point: mesh harmonics in the **off-line-of-action** direction (∝ μ·load), a step at the pitch
+  point every mesh cycle; on a line-of-action sensor only its moments show (weak, mesh
+  harmonics, confusable with profile shape).
+* ``speed_fluctuation``: the motor's speed reference modulated at n × the pinion-shaft order
+  (phase-locked): the once-per-rev tach cannot follow it within a revolution, so the angle
+  average keeps a phase modulation of the mesh at ±n pinion orders growing with the mesh
+  harmonic (kinematic, like a pinion eccentricity) plus AM from the inertial torques. A
+  non-synchronous fluctuation (in Hz) only raises the segment scatter (coherence loss ∝ order):
+  it is read from the tach's speed statistics, not fitted.
+* ``contact_loss``: Heaviside contact (teeth separate) where the configuration has a
+  linearised mesh: sub- and superharmonics of the mesh, broadband bursts; appears at light load
+  or near resonance, vanishes at high load. No continuous parameter (q = 0); derived: the share
+  of the hunting period without any contact, the smallest contact length.
 
 Examples
 --------
@@ -54,18 +68,8 @@ MECHANISM_NAMES = (
     "speed_fluctuation",
 )
 
-UNAVAILABLE = {
-    "sliding_friction": "the simulator has no friction force yet (off-line-of-action physics)",
-    "contact_loss": (
-        "contact loss is always active in the simulator (gap-free Heaviside contact); no "
-        "backlash/gap parameter to fit yet"
-    ),
-    "speed_fluctuation": (
-        "measured directly on the tachometer; its effect on the angle-domain averages is not "
-        "fitted yet"
-    ),
-}
-"""Catalogue names without a fitted plug-in yet, and why (reported in the JSON)."""
+UNAVAILABLE: dict[str, str] = {}
+"""Catalogue names without a fitted plug-in yet, and why (reported in the JSON); none left."""
 
 
 @dataclass(frozen=True)
@@ -105,6 +109,10 @@ class Mechanism:
     transfer_only: bool = False
     """Changes only the sensor path (no new simulation needed)."""
     declared_loads: str = ""
+    tie_precedence: int = 0
+    """Between two declared confusable mechanisms that fit equally well, the lower is named
+    (the more common content of real rigs: runout and tip relief before a shaft-locked speed
+    fluctuation or friction); the other is listed as unresolved."""
 
     def candidates(self, model: GearPairModel) -> list[Candidate]:
         return [Candidate(self.name)]
@@ -133,6 +141,13 @@ class Mechanism:
 
     def upper_bounds(self) -> list[float]:
         return [np.inf] * len(self.steps)
+
+    def derived_parameters(self, model: GearPairModel, speed_rpm: float) -> dict[str, float]:
+        """Quantities reported with a finding that the fit does not move (default: none).
+
+        ``model`` is the fitted configuration with this mechanism in it, at ``speed_rpm``.
+        """
+        return {}
 
 
 def _deviations(model: GearPairModel, **changes: Any) -> GearPairModel:
@@ -321,6 +336,112 @@ class LoadFluctuation(Mechanism):
         )
 
 
+class SpeedFluctuation(Mechanism):
+    """Speed reference modulated at a pinion-shaft order: internal vector (A cos φ, A sin φ) in %.
+
+    ``fraction`` is the set-point's relative amplitude; the speed loop and the shaft
+    torsion shape what the wheels actually do (the simulator's response)."""
+
+    name = "speed_fluctuation"
+    tie_precedence = 1
+    reference = (0.5, 0.5)
+    steps = (0.025, 0.025)
+    orders = (1, 2)
+
+    def candidates(self, model: GearPairModel) -> list[Candidate]:
+        return [Candidate(self.name, "pinion", order=n) for n in self.orders]
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        a, phi = params["fraction"] * 100.0, math.radians(params["phase_deg"])
+        return [a * math.cos(phi), a * math.sin(phi)]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        c, s = float(vector[0]), float(vector[1])
+        return {"fraction": math.hypot(c, s) / 100.0, "phase_deg": math.degrees(math.atan2(s, c)) % 360.0}
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        return model.replace(
+            operating=dataclasses.replace(
+                model.operating,
+                speed_fluctuation_fraction=params["fraction"],
+                speed_fluctuation_order=candidate.order or 1,
+                speed_fluctuation_phase_deg=params["phase_deg"],
+            )
+        )
+
+
+class SlidingFriction(Mechanism):
+    """Coulomb friction at the contact: internal vector (μ,), added to the configured μ."""
+
+    name = "sliding_friction"
+    tie_precedence = 1
+    reference = (0.05,)
+    steps = (0.0025,)
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        return [params["friction_coefficient"]]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        return {"friction_coefficient": float(vector[0])}
+
+    def lower_bounds(self) -> list[float]:
+        return [0.0]
+
+    def upper_bounds(self) -> list[float]:
+        return [0.3]
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        mu = max(0.0, model.mesh.friction_coefficient + params["friction_coefficient"])
+        return model.replace(mesh=dataclasses.replace(model.mesh, friction_coefficient=mu))
+
+
+class ContactLoss(Mechanism):
+    """Switch a linearised mesh to unit-step contact (teeth separate): no fitted parameter.
+
+    A candidate only when the configuration has ``mesh.contact_loss = False``. Its evidence is
+    the Δχ² of the switched model after the nuisance refit (q = 0 in the BIC)."""
+
+    name = "contact_loss"
+    reference = ()
+    steps = ()
+
+    def candidates(self, model: GearPairModel) -> list[Candidate]:
+        return [] if model.mesh.contact_loss else [Candidate(self.name)]
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        return []
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        return {}
+
+    def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
+        return model.replace(mesh=dataclasses.replace(model.mesh, contact_loss=True))
+
+    def derived_parameters(self, model: GearPairModel, speed_rpm: float) -> dict[str, float]:
+        """Share of one hunting period with no tooth in contact, and the smallest contact length.
+
+        From the simulator's contact-length output (noise-free, at the record's speed)."""
+        from physics.reconcile.observables import revs_per_hunting_period
+        from physics.simulator import simulate
+
+        g = model.geometry
+        revs = revs_per_hunting_period(g.pinion_teeth, g.gear_teeth)
+        run = model.replace(
+            operating=dataclasses.replace(model.operating, speed_rpm=speed_rpm),
+            sensors=[dataclasses.replace(s, noise_rms_m_s2=0.0) for s in model.sensors],
+        )
+        result = simulate(run, seconds=(revs + 1.5) * 60.0 / speed_rpm, seed=None)
+        pulses = result.tach_pulse_times_s
+        per_rev = model.tachometer.pulses_per_rev
+        first = int(np.ceil(pulses[0] * result.sample_rate_hz))
+        last = int(np.floor(pulses[revs * per_rev] * result.sample_rate_hz))
+        length_m = result.contact_length_m[first:last]
+        return {
+            "loss_of_contact_fraction": float(np.mean(length_m <= 0.0)),
+            "min_contact_length_mm": float(length_m.min() * 1e3),
+        }
+
+
 class StructuralModeMechanism(Mechanism):
     """A transfer-path mode the configuration lacks: internal vector (ln f, ln ζ); gain linear."""
 
@@ -380,6 +501,9 @@ CATALOGUE: dict[str, Mechanism] = {
         ProfileModification(),
         StructuralModeMechanism(),
         LoadFluctuation(),
+        SlidingFriction(),
+        ContactLoss(),
+        SpeedFluctuation(),
     )
 }
 """The fitted plug-ins, by catalogue name."""
@@ -397,6 +521,15 @@ CONFUSABLE: dict[frozenset[str], str] = {
     frozenset({"profile_modification", "structural_mode"}): (
         "a record at another speed (profile content stays at fixed orders, a resonance stays "
         "at fixed Hz)"
+    ),
+    frozenset({"profile_modification", "sliding_friction"}): (
+        "a second accelerometer direction (friction loads across the line of action) or a "
+        "record at another load (friction ∝ μ·load, relief content shrinks as load grows)"
+    ),
+    frozenset({"pinion_eccentricity", "speed_fluctuation"}): (
+        "a record at another speed (the speed loop and the shaft torsion change the speed "
+        "fluctuation's response, a runout is geometric) or a multi-pulse tach / encoder that "
+        "follows the speed within a revolution"
     ),
 }
 """Declared confusable pairs and the observable that would separate them."""

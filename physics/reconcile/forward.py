@@ -92,6 +92,8 @@ def channel_model(model: GearPairModel, setup: ForwardSetup) -> GearPairModel:
         Sensor(
             name=f"mode{i}",
             source=sensor.source,
+            # The sensor's direction: an off-line sensor sees friction, not the mesh force.
+            direction=sensor.direction,
             noise_rms_m_s2=0.0,
             modes=[dataclasses.replace(mode, gain_m_s2_per_n=1.0)],
         )

@@ -17,7 +17,11 @@ is the issue-6 JSON contract.
    the nuisance parameters. Score ``ΔBIC = −Δχ²/s + q ln n + 2 ln N_scan`` (``s`` =
    max(1, χ²/dof): unexplained excess deflates evidence; ``N_scan`` = candidates of that
    family: look-elsewhere). The best candidate under ``accept_delta_bic`` is refitted
-   non-linearly with everything else; repeat until nothing is significant.
+   non-linearly with everything else; repeat until nothing is significant. A declared
+   confusable rival as close as the linearisation can tell is refitted too (the better refit
+   wins; a tie names the more common mechanism and is reported unresolved). A mechanism
+   without a continuous parameter (q = 0, a switch such as ``contact_loss``) is scored by its
+   non-linear refit. An off-line-of-action sensor's gains are anchored to the configuration.
 4. **Honesty guard.** ``explained`` only if the final χ²/dof is within ``1 ± 3√(2/dof)``.
 
 Examples
@@ -106,6 +110,11 @@ class ReconcileOptions:
     forward_oversampling: int | None = None
     """Integrator steps per output sample of the forward simulations (None: the model's); a
     coarser step is faster and its model-form error is absorbed by the calibration."""
+    anchor_gains: bool | None = None
+    """Gaussian prior of the configured mode gains (relative σ ``gain_tolerance``). None: only
+    for a sensor off the line of action, whose signal is ∝ friction (or support coupling)
+    times the gain: the two are not separable from the data, the configuration's gain is."""
+    gain_tolerance: float = 0.3
 
 
 @dataclass
@@ -202,6 +211,8 @@ class _Evaluation:
     prediction: ComplexArray
     columns: ComplexArray
     model: GearPairModel
+    gain_prior: FloatArray = field(default_factory=lambda: np.zeros(0))
+    """Whitened departures of anchored gains from the configuration (empty: not anchored)."""
 
 
 class _Fitter:
@@ -252,6 +263,16 @@ class _Fitter:
                     (f"ln_zeta_mode{i}", math.log(mode.damping_ratio), options.mode_damping_tolerance, 0.02)
                 )
         self.n_rows = 2 * int(self.used.sum())
+        sensor = model.sensors[options.sensor_index]
+        anchor = options.anchor_gains
+        if anchor is None:
+            anchor = sensor.direction == "off_line_of_action"
+        # (configured gain, prior σ) per configured mode when anchored.
+        self.gain_prior: list[tuple[float, float]] = (
+            [(m.gain_m_s2_per_n, options.gain_tolerance * abs(m.gain_m_s2_per_n)) for m in sensor.modes]
+            if anchor
+            else []
+        )
 
     # ----------------------------------------------------------------- evaluation
     def theta0(self, accepted: list[_Accepted]) -> FloatArray:
@@ -322,8 +343,17 @@ class _Fitter:
         matrix = np.concatenate([a.real, a.imag], axis=1).T
         b = self.target[u] * w
         rhs = np.concatenate([b.real, b.imag])
+        if self.gain_prior:
+            rows = np.zeros((len(self.gain_prior), columns.shape[0]))
+            for i, (_g0, sigma) in enumerate(self.gain_prior):
+                rows[i, i] = 1.0 / sigma
+            matrix = np.concatenate([matrix, rows])
+            rhs = np.concatenate([rhs, [g0 / sigma for g0, sigma in self.gain_prior]])
         gains, *_ = np.linalg.lstsq(matrix, rhs, rcond=None)
         return np.asarray(gains, dtype=float)
+
+    def gain_residual(self, gains: FloatArray) -> FloatArray:
+        return np.asarray([(gains[i] - g0) / sigma for i, (g0, sigma) in enumerate(self.gain_prior)], dtype=float)
 
     def evaluate(self, theta: FloatArray, accepted: list[_Accepted]) -> _Evaluation:
         model, tuned, extra = self.model_at(theta, accepted)
@@ -332,7 +362,9 @@ class _Fitter:
         columns = columns * self.delay_phase(theta)
         gains = self.solve_gains(columns)
         prediction = gains @ columns
-        return _Evaluation(self.whiten(self.target - prediction), gains, prediction, columns, model)
+        return _Evaluation(
+            self.whiten(self.target - prediction), gains, prediction, columns, model, self.gain_residual(gains)
+        )
 
     def whiten(self, values: ComplexArray) -> FloatArray:
         u = self.used
@@ -353,7 +385,8 @@ class _Fitter:
         steps = self.steps(accepted)
 
         def fun(x: FloatArray) -> FloatArray:
-            return np.concatenate([self.evaluate(x, accepted).residual, self.prior(x)])
+            e = self.evaluate(x, accepted)
+            return np.concatenate([e.residual, e.gain_prior, self.prior(x)])
 
         def jac(x: FloatArray) -> FloatArray:
             f0 = fun(x)
@@ -382,7 +415,9 @@ class _Fitter:
             if float(result.cost) > 0.99 * before:
                 break
         theta_hat = np.asarray(result.x, dtype=float)
-        jacobian = np.asarray(result.jac, dtype=float)[: self.n_rows]
+        # Data rows, then the anchored gains' prior rows (if any; they carry the information
+        # on an amplitude the gain cannot absorb).
+        jacobian = np.asarray(result.jac, dtype=float)[: self.n_rows + len(self.gain_prior)]
         return theta_hat, jacobian, self.evaluate(theta_hat, accepted)
 
     def chi2(self, evaluation: _Evaluation) -> float:
@@ -492,16 +527,22 @@ def _score_all(
     chi2_scale: float,
 ) -> list[_Score]:
     residual = evaluation.residual
+    n = fitter.n_rows
     gain_cols = np.stack([fitter.whiten(c) for c in evaluation.columns], axis=1)
-    basis = np.concatenate([gain_cols, jacobian], axis=1)
+    basis = np.concatenate([gain_cols, jacobian[:n]], axis=1)
+    # Columns that are exactly zero (a parameter without effect, e.g. every gain of an
+    # off-line sensor on a frictionless base) span nothing: QR would invent a direction.
+    basis = basis[:, np.any(basis != 0.0, axis=0)]
     q, _ = np.linalg.qr(basis)
     r_perp = residual - q @ (q.T @ residual)
-    n = fitter.n_rows
     scores: list[_Score] = []
     taken = {(a.candidate.mechanism, a.candidate.wheel, a.candidate.tooth) for a in accepted}
     for name in fitter.options.mechanisms:
         mechanism = CATALOGUE.get(name)
         if mechanism is None:
+            continue
+        if not mechanism.steps:
+            scores.extend(_switched_scores(fitter, mechanism, theta, accepted, evaluation, chi2_scale))
             continue
         items = _candidate_columns(fitter, mechanism, theta, accepted, evaluation)
         n_scan = max(1, len(items))
@@ -527,6 +568,91 @@ def _score_all(
             scores.append(_Score(cand, mechanism, delta, bic, p, np.asarray(coef, dtype=float), n_scan))
     scores.sort(key=lambda s: s.delta_bic)
     return scores
+
+
+def _switched_scores(
+    fitter: _Fitter,
+    mechanism: Mechanism,
+    theta: FloatArray,
+    accepted: list[_Accepted],
+    evaluation: _Evaluation,
+    chi2_scale: float,
+) -> list[_Score]:
+    """Scores of a mechanism without a continuous parameter (q = 0): a switch of the model.
+
+    Linearising is no use here: the calibration done without it may have bent the nuisances
+    (e.g. the mesh damping absorbing a loss of contact) to where switching changes nothing.
+    So each candidate is refitted non-linearly, nuisances restarted from the configuration
+    (as at acceptance, which then reuses the cached simulations); Δχ² is the drop, q = 0.
+    """
+    model = fitter.model_at(theta, accepted)[0]
+    candidates = mechanism.candidates(model)
+    chi2_now = fitter.chi2(evaluation)
+    out = []
+    for cand in candidates:
+        trial = [*accepted, _Accepted(mechanism, cand, np.zeros(0), {})]
+        start = theta.copy()
+        start[: len(fitter.nuisance)] = [x[1] for x in fitter.nuisance]
+        # Where the switch changes nothing, neither at the calibration nor at the configured
+        # nuisances (e.g. no tooth ever separates), there is nothing to refit: Δχ² = 0.
+        change = max(
+            float(np.sum(fitter.whiten(fitter.evaluate(x, trial).prediction - fitter.evaluate(x, accepted).prediction) ** 2))
+            for x in (theta, start)
+        )
+        if change < 1e-6:
+            delta = 0.0
+        else:
+            _theta, _jac, switched = fitter.fit(trial, start)
+            delta = chi2_now - fitter.chi2(switched)
+        eff = delta / chi2_scale
+        bic = -eff + 2.0 * math.log(len(candidates))
+        # Not nested: the p-value of one degree of freedom (conservative).
+        p = min(1.0, len(candidates) * float(stats.chi2.sf(max(eff, 0.0), 1)))
+        out.append(_Score(cand, mechanism, delta, bic, p, np.zeros(0), len(candidates)))
+    return out
+
+
+def _refit(
+    fitter: _Fitter,
+    score: _Score,
+    accepted: list[_Accepted],
+    theta: FloatArray,
+    chi2_now: float,
+    scale: float,
+) -> tuple[float, _Accepted, list[_Accepted], FloatArray, FloatArray, _Evaluation]:
+    """Non-linear refit of the base, the accepted findings and one scored candidate.
+
+    Returns (refit ΔBIC, the new finding, the trial list, θ, Jacobian, evaluation)."""
+    vector = score.coefficients.copy()
+    if score.mechanism.transfer_only:
+        assert score.candidate.mode_frequency_hz is not None
+        assert score.candidate.mode_damping_ratio is not None
+        vector = np.array(
+            [math.log(score.candidate.mode_frequency_hz), math.log(score.candidate.mode_damping_ratio)]
+        )
+    new = _Accepted(score.mechanism, score.candidate, vector, {})
+    trial = [*accepted, new]
+    # Restart the nuisance parameters from the configuration: a calibration done
+    # without the mechanism may have bent them towards it (e.g. the load absorbing a
+    # spall).
+    theta_try = np.concatenate([theta, vector])
+    theta_try[: len(fitter.nuisance)] = [x[1] for x in fitter.nuisance]
+    theta_new, jac_new, eval_new = fitter.fit(trial, theta_try)
+    # The evidence is re-scored on the non-linear refit: a linearised gain the refit
+    # does not keep is not accepted.
+    n_new = len(score.mechanism.steps) + (1 if score.mechanism.transfer_only else 0)
+    gain_eff = (chi2_now - fitter.chi2(eval_new)) / scale
+    refit_bic = -gain_eff + n_new * math.log(fitter.n_rows) + 2.0 * math.log(score.n_scan)
+    new.evidence = {
+        "delta_bic": refit_bic,
+        # q = 0 (a switched model, not nested): the p-value of one degree of freedom.
+        "p_value": min(1.0, score.n_scan * float(stats.chi2.sf(max(gain_eff, 0.0), max(n_new, 1)))),
+        "delta_chi2": chi2_now - fitter.chi2(eval_new),
+        "scanned": float(score.n_scan),
+        "delta_bic_scan": score.delta_bic,
+    }
+    return refit_bic, new, trial, theta_new, jac_new, eval_new
+
 
 
 # ----------------------------------------------------------------------------- driver
@@ -629,46 +755,62 @@ def reconcile(
         )
         if best.delta_bic >= options.accept_delta_bic:
             break
-        vector = best.coefficients.copy()
-        if best.mechanism.transfer_only:
-            assert best.candidate.mode_frequency_hz is not None
-            assert best.candidate.mode_damping_ratio is not None
-            vector = np.array([math.log(best.candidate.mode_frequency_hz), math.log(best.candidate.mode_damping_ratio)])
-        new = _Accepted(best.mechanism, best.candidate, vector, {})
-        trial = [*accepted, new]
-        # Restart the nuisance parameters from the configuration: a calibration done without
-        # the mechanism may have bent them towards it (e.g. the load absorbing a spall).
-        theta_try = np.concatenate([theta, vector])
-        theta_try[: len(fitter.nuisance)] = [x[1] for x in fitter.nuisance]
-        theta_new, jac_new, eval_new = fitter.fit(trial, theta_try)
-        chi2_new = fitter.chi2(eval_new)
-        # The evidence is re-scored on the non-linear refit: a linearised gain the refit does
-        # not keep is not accepted.
-        n_new = len(best.mechanism.steps) + (1 if best.mechanism.transfer_only else 0)
-        gain_eff = (chi2_now - chi2_new) / scale
-        refit_bic = -gain_eff + n_new * math.log(fitter.n_rows) + 2.0 * math.log(best.n_scan)
+
+        # A declared confusable rival whose linearised score is as close as the linearisation
+        # can tell (absolute margin, or 1 % of a large ΔBIC) is refitted too: the non-linear
+        # fits decide (e.g. a speed fluctuation and a pinion runout share their FM).
+        rivals = [
+            s
+            for s in scores[1:]
+            if frozenset({best.candidate.mechanism, s.candidate.mechanism}) in CONFUSABLE
+            and s.delta_bic < options.accept_delta_bic
+            and s.delta_bic - best.delta_bic < max(options.confusable_margin, 0.01 * abs(best.delta_bic))
+        ][:1]
+        fits = [_refit(fitter, s, accepted, theta, chi2_now, scale) for s in [best, *rivals]]
+        fits.sort(key=lambda f: f[0])
+        tie: tuple[float, _Accepted] | None = None
+        if len(fits) > 1:
+            better_eval, worse_eval = fits[0][5], fits[1][5]
+            better_dof = fitter.dof(better_eval, fits[0][2])
+            # The two fits against each other, on the better one's residual scale.
+            versus = (fitter.chi2(worse_eval) - fitter.chi2(better_eval)) / max(
+                1.0, fitter.chi2(better_eval) / better_dof
+            )
+            if versus < options.confusable_margin:
+                # A tie: the more common mechanism of the pair is named (a runout before a
+                # shaft-locked speed fluctuation), then the scan's order; both are reported.
+                order = [best.candidate, *(r.candidate for r in rivals)]
+                fits.sort(key=lambda f: (f[1].mechanism.tie_precedence, order.index(f[1].candidate)))
+                tie = (fits[1][0], fits[1][1])
+        refit_bic, new, trial, theta_new, jac_new, eval_new = fits[0]
         if refit_bic >= options.accept_delta_bic:
             break
+        chi2_new = fitter.chi2(eval_new)
         dof_new = fitter.dof(eval_new, trial)
-        evidence = {
-            "delta_bic": refit_bic,
-            "p_value": min(1.0, best.n_scan * float(stats.chi2.sf(gain_eff, n_new))),
-            "delta_chi2": chi2_now - chi2_new,
-            "scanned": float(best.n_scan),
-            "delta_bic_scan": best.delta_bic,
-        }
-        new.evidence = evidence
-        for other in scores[1:]:
-            pair = frozenset({best.candidate.mechanism, other.candidate.mechanism})
-            if pair in CONFUSABLE and other.delta_bic - best.delta_bic < options.confusable_margin:
+        chosen = next(s for s in scores if s.candidate == new.candidate)
+        if len(fits) > 1:
+            if tie is not None:
+                rival_bic, rival = tie
+                pair = frozenset({new.candidate.mechanism, rival.candidate.mechanism})
                 unresolved.append(
                     {
-                        "candidates": [best.candidate.label, other.candidate.label],
-                        "delta_bic": [_round(best.delta_bic), _round(other.delta_bic)],
+                        "candidates": [new.candidate.label, rival.candidate.label],
+                        "delta_bic": [_round(refit_bic), _round(rival_bic)],
                         "separate_by": CONFUSABLE[pair],
                     }
                 )
-                break
+        else:
+            for other in scores[1:]:
+                pair = frozenset({chosen.candidate.mechanism, other.candidate.mechanism})
+                if pair in CONFUSABLE and other.delta_bic - chosen.delta_bic < options.confusable_margin:
+                    unresolved.append(
+                        {
+                            "candidates": [chosen.candidate.label, other.candidate.label],
+                            "delta_bic": [_round(chosen.delta_bic), _round(other.delta_bic)],
+                            "separate_by": CONFUSABLE[pair],
+                        }
+                    )
+                    break
         accepted, theta, jacobian, evaluation, chi2_now = trial, theta_new, jac_new, eval_new, chi2_new
         findings.append(_finding(fitter, accepted, theta, jacobian, evaluation, len(accepted) - 1, chi2_new / dof_new))
     timings["selection"] = time.perf_counter() - t2
@@ -680,6 +822,10 @@ def reconcile(
         )
         for i in range(len(accepted))
     ]
+    if accepted:
+        fitted_model = fitter.model_at(theta, accepted)[0]
+        for a, finding in zip(accepted, final_findings, strict=True):
+            finding.parameters.update(a.mechanism.derived_parameters(fitted_model, spec.speed_rpm))
     dof_final = fitter.dof(evaluation, accepted)
     chi2_dof_final = chi2_now / dof_final
     tolerance = 3 * math.sqrt(2 / dof_final)
@@ -789,6 +935,14 @@ def _configured_mechanisms(model: GearPairModel) -> list[str]:
         out.append("gear_eccentricity")
     if d.pinion_tip_relief_um or d.gear_tip_relief_um:
         out.append("profile_modification")
+    if model.mesh.friction_coefficient:
+        out.append("sliding_friction")
+    if model.operating.speed_fluctuation_fraction and model.operating.speed_fluctuation_order:
+        out.append("speed_fluctuation")
+    if model.operating.load_fluctuation_fraction:
+        out.append("load_fluctuation")
+    if not model.mesh.contact_loss:
+        out.append("linear_mesh (no contact loss)")
     return out
 
 
@@ -820,6 +974,8 @@ def _finding(
     params = a.mechanism.from_vector(vector)
     ci: dict[str, list[float]] = {}
     try:
+        if n == 0:
+            raise ValueError("no fitted parameter")
         dof = fitter.dof(evaluation, accepted)
         scale = max(1.0, fitter.chi2(evaluation) / dof)
         prior_rows = np.zeros((len(fitter.nuisance), jacobian.shape[1]))

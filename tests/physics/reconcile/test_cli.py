@@ -66,6 +66,6 @@ def test_bad_input_is_one_line_not_a_traceback(campaign: Path) -> None:
     assert "Traceback" not in proc.stderr and "missing.wav" in proc.stderr
     proc = run_cli(
         "reconcile", str(campaign / "rec.wav"), "--campaign", str(campaign / "campaign.toml"),
-        "--mechanisms", "sliding_friction",
+        "--mechanisms", "backlash_gap",
     )
-    assert proc.returncode != 0 and "sliding_friction" in proc.stderr and "Traceback" not in proc.stderr
+    assert proc.returncode != 0 and "backlash_gap" in proc.stderr and "Traceback" not in proc.stderr
