@@ -20,8 +20,8 @@ Signatures (see ``docs/reconciliation.md`` and ``shared/docs/physics-signatures.
 * ``load_fluctuation``: output torque modulated at an output-shaft order: AM sidebands.
 * ``sliding_friction``: Coulomb friction μ·N across the line of action, reversing at the pitch
   point: mesh harmonics in the **off-line-of-action** direction (∝ μ·load), a step at the pitch
-  point every mesh cycle; on a line-of-action sensor only its moments show (weak, mesh
-  harmonics, confusable with profile shape).
+  point every mesh cycle; on a line-of-action sensor only its moments show (mesh harmonics
+  only, where model-form error sits too: scanned there only on request).
 * ``speed_fluctuation``: the motor's speed reference modulated at n × the pinion-shaft order
   (phase-locked): the once-per-rev tach cannot follow it within a revolution, so the angle
   average keeps a phase modulation of the mesh at ±n pinion orders growing with the mesh
@@ -109,6 +109,9 @@ class Mechanism:
     transfer_only: bool = False
     """Changes only the sensor path (no new simulation needed)."""
     declared_loads: str = ""
+    off_line_only: bool = False
+    """Scanned on a line-of-action sensor only when asked (``ReconcileOptions.friction_on_line_of_action``):
+    there its signature is mesh harmonics only, where model-form error also sits."""
     tie_precedence: int = 0
     """Between two declared confusable mechanisms that fit equally well, the lower is named
     (the more common content of real rigs: runout and tip relief before a shaft-locked speed
@@ -375,6 +378,7 @@ class SlidingFriction(Mechanism):
 
     name = "sliding_friction"
     tie_precedence = 1
+    off_line_only = True
     reference = (0.05,)
     steps = (0.0025,)
 

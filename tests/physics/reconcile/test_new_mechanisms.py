@@ -23,6 +23,8 @@ from physics.reconcile import (
     reconcile,
 )
 from physics.reconcile.forward import ForwardSetup, channel_model
+from physics.reconcile.method import _Fitter
+from physics.reconcile.observables import hunting_spectrum
 from physics.simulator import simulate
 
 from .conftest import fast_options
@@ -88,6 +90,24 @@ FRICTION_OPTIONS = fast_options(
 )
 
 
+def test_off_line_gains_are_anchored_to_the_configuration() -> None:
+    """Off the line of action the signal is μ × gain: the configured gains carry the scale."""
+    off = _model(sensors=[Sensor(name="off", direction="off_line_of_action")])
+    rec = _measured(_with(off, "mesh", friction_coefficient=0.05), 2.0, seed=1)
+    spec = hunting_spectrum(rec.signal, rec.sample_rate_hz, rec.pulse_times_s, 1, pinion_teeth=20,
+                            gear_teeth=21, samples_per_mesh=16, max_frequency_hz=2500.0)
+    fitter = _Fitter(spec, spec.mean, spec.variance, off, FRICTION_OPTIONS)
+    configured = [m.gain_m_s2_per_n for m in off.sensors[0].modes]
+    assert [g for g, _sigma in fitter.gain_prior] == configured
+    # A frictionless base predicts exactly nothing there: the gains stay as configured.
+    evaluation = fitter.evaluate(fitter.theta0([]), [])
+    assert not np.any(evaluation.prediction)
+    np.testing.assert_allclose(evaluation.gains, configured)
+    np.testing.assert_allclose(evaluation.gain_prior, 0.0, atol=1e-12)
+    # On the line of action the data fix the gains: no prior.
+    assert _Fitter(spec, spec.mean, spec.variance, _model(), FRICTION_OPTIONS).gain_prior == []
+
+
 @pytest.mark.slow
 def test_sliding_friction_seen_off_the_line_of_action_is_found_with_its_coefficient() -> None:
     """An accelerometer across the line of action sees the friction force only: base μ = 0
@@ -107,12 +127,17 @@ def test_sliding_friction_seen_off_the_line_of_action_is_found_with_its_coeffici
 
 
 @pytest.mark.slow
-def test_no_false_friction_finding_on_a_line_of_action_control() -> None:
+def test_friction_on_a_line_of_action_sensor_only_on_request_and_no_false_finding() -> None:
     base = _model()
-    result = reconcile(_measured(base, 3.0, seed=11), base, options=FRICTION_OPTIONS)
-    data = result.to_json()
+    record = _measured(base, 3.0, seed=11)
+    scanned = reconcile(record, base, options=dataclasses.replace(FRICTION_OPTIONS, friction_on_line_of_action=True))
+    data = scanned.to_json()
     assert data["findings"] == [], data["findings"]
     assert data["status"] == "explained", data["final"]
+    default = reconcile(record, base, options=FRICTION_OPTIONS)
+    assert default.candidates_scored == [] and default.to_json()["findings"] == []
+    # Scanning friction took its simulation (a negative linearised μ is then not scored).
+    assert scanned.simulations == default.simulations + 1
 
 
 # --- speed fluctuation ----------------------------------------------------------------------
