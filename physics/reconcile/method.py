@@ -59,10 +59,18 @@ from physics.reconcile.catalogue import (
     ToothMechanism,
 )
 from physics.reconcile.forward import ForwardModel, ForwardSetup, reconciled_modes
-from physics.reconcile.localize import mismatches
-from physics.reconcile.observables import HuntingSpectrum, hunting_spectrum
+from physics.reconcile.localize import mismatches, nonsynchronous_mismatch
+from physics.reconcile.observables import (
+    HuntingSpectrum,
+    gear_frame_shift,
+    hunting_spectrum,
+    shift_revolutions,
+)
 
 FloatArray = NDArray[np.float64]
+
+FRAME_EVIDENCE = 10.0
+"""The best gear-frame shift must beat every other by this χ² (odds > 150 : 1) to be applied."""
 ComplexArray = NDArray[np.complex128]
 
 
@@ -697,6 +705,7 @@ def reconcile(
     variance = spec.variance.copy()
     timings: dict[str, float] = {"observable": time.perf_counter() - t0}
     reference_json: dict[str, Any] | None = None
+    ref_nonsync: dict[str, Any] | None = None
     if reference is not None:
         # The healthy reference is reconciled first; what it needs (runout, index errors,
         # modes the configuration lacks...) is normal content of this rig and goes into the
@@ -704,6 +713,14 @@ def reconcile(
         # explained.
         ref_result = reconcile(reference, model, options=options)
         model = ref_result.updated_model
+        # A pinion tach leaves each record's gear frame wherever the gear was at its first
+        # pulse: bring this record onto the reference's frame (whole pinion revolutions)
+        # before its residual is subtracted, so gear teeth keep the reference's numbers.
+        # Without gear-frame content (an ideal gear) the frame cannot be told and is left alone.
+        frame_shift, frame_match, frame_evidence = gear_frame_shift(spec, ref_result.spectrum)
+        frame_aligned = frame_evidence > FRAME_EVIDENCE
+        spec = shift_revolutions(spec, frame_shift if frame_aligned else 0)
+        target = spec.mean.copy()
         n = min(ref_result.spectrum.n_bins, spec.n_bins)
         offset = np.zeros_like(target)
         offset[:n] = (ref_result.target - ref_result.final_prediction)[:n]
@@ -713,7 +730,17 @@ def reconcile(
             "status": ref_result.status,
             "accepted_into_base": [f.to_json() for f in ref_result.findings],
             "chi2_dof": ref_result.final["chi2_dof"],
+            "gear_frame": {
+                "shift_revolutions": frame_shift if frame_aligned else 0,
+                "match": round(frame_match, 4),
+                "evidence_delta_chi2": round(frame_evidence, 1),
+                "aligned": bool(frame_aligned),
+            },
         }
+        ref_nonsync = nonsynchronous_mismatch(
+            ref_result.spectrum.segment_spectra, ref_result.spectrum.used,
+            ref_result.spectrum.bin_frequency_hz,
+        )
         timings["reference"] = time.perf_counter() - t0 - timings["observable"]
 
     fitter = _Fitter(spec, target, variance, model, options)
@@ -737,6 +764,15 @@ def reconcile(
         tooth1_pitch_angle_deg=tooth1,
         min_share=options.min_excess_share,
     ) if chi2_base / dof_base > 1 + 3 * math.sqrt(2 / dof_base) else []
+    # Content locked to no shaft of the pair never reaches the averages (nor χ²): it is
+    # looked for in the scatter between hunting periods, whatever χ² says.
+    nonsync = nonsynchronous_mismatch(spec.segment_spectra, spec.used, spec.bin_frequency_hz)
+    if nonsync is not None:
+        if reference is not None:
+            nonsync["also_in_reference"] = bool(
+                ref_nonsync is not None and ref_nonsync["band_hz"] == nonsync["band_hz"]
+            )
+        located.append(nonsync)
 
     accepted: list[_Accepted] = []
     findings: list[Finding] = []

@@ -85,3 +85,26 @@ def test_honesty_guard_bounds() -> None:
     assert honesty_status(1 + 0.99 * half, dof, 2) == "explained"
     assert honesty_status(1 + 1.01 * half, dof, 2) == "partly_explained"
     assert honesty_status(1 - 1.01 * half, dof, 0) == "not_explained"
+
+
+@pytest.mark.slow
+def test_reference_mode_brings_the_record_onto_the_reference_gear_frame(base_model: GearPairModel) -> None:
+    """A pinion tach starts each record wherever the gear happens to be: the record below starts
+    7 pinion revolutions later in the gear's cycle than its reference. The rig's gear runout
+    (normal content, found on the reference) fixes the frame, so the new index error is named
+    on the gear tooth the reference numbers it with (without alignment: tooth 16)."""
+    rig = base_model.replace(deviations=dataclasses.replace(
+        base_model.deviations, gear_eccentricity_um=3.0, gear_eccentricity_phase_deg=50.0))
+    errors = [0.0] * 21
+    errors[8] = 4.0
+    worn = rig.replace(deviations=dataclasses.replace(rig.deviations, gear_pitch_errors_um=errors))
+    late = simulate(worn, seconds=5.5, seed=5)
+    measured = MeasuredRecord(late.channels["acc"], late.sample_rate_hz, late.tach_pulse_times_s[7:], 1)
+    result = reconcile(measured, base_model, reference=_record(rig, 6),
+                       options=fast_options(mechanisms=("gear_eccentricity", "index_error"), max_findings=1))
+    data = result.to_json()
+    frame = data["reference"]["gear_frame"]
+    assert frame["aligned"] and frame["shift_revolutions"] == 21 - 7, frame
+    finding = data["findings"][0]
+    assert (finding["mechanism"], finding["wheel"], finding["tooth"]) == ("index_error", "gear", 9), data
+    assert finding["parameters"]["error_um"] == pytest.approx(4.0, rel=0.1)

@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from physics.reconcile.localize import frequency_mismatch, order_mismatches, tooth_mismatch
-from physics.reconcile.observables import hunting_spectrum, order_classes, pooled_variance
+from physics.reconcile.observables import (
+    gear_frame_shift,
+    hunting_spectrum,
+    order_classes,
+    pooled_variance,
+    shift_revolutions,
+)
 
 FS = 20_000.0
 F_REV = 1000.0 / 60.0
@@ -103,3 +109,43 @@ def test_localisation_names_the_class_the_band_and_the_tooth() -> None:
     pinion = next(m for m in located if m["wheel"] == "pinion")
     assert pinion["teeth"] == [7]
     assert pinion["angle_deg"] == [pytest.approx(109.0), pytest.approx(127.0)]  # 118° ± half a pitch
+
+
+@pytest.mark.parametrize("late_revolutions", [0, 4, 13])
+def test_gear_frame_of_a_later_start_is_found_and_undone(late_revolutions: int) -> None:
+    """Two records of one rig whose first pinion pulses find the gear elsewhere."""
+    import dataclasses
+
+    from physics.config import GearPairModel
+    from physics.simulator import simulate
+
+    base = GearPairModel()
+    rig = base.replace(deviations=dataclasses.replace(
+        base.deviations, gear_eccentricity_um=3.0, gear_pitch_errors_um=[0.0] * 4 + [4.0] + [0.0] * 16))
+    sim = simulate(rig, seconds=6.0, seed=2)
+    x, pulses = sim.channels["acc"], sim.tach_pulse_times_s
+    kw = dict(pinion_teeth=20, gear_teeth=21, samples_per_mesh=16, max_frequency_hz=3000.0)
+    reference = hunting_spectrum(x, sim.sample_rate_hz, pulses, 1, **kw)
+    # Another record (other sensor noise) whose analysis starts some revolutions later.
+    other = simulate(rig, seconds=6.0, seed=3)
+    later = hunting_spectrum(other.channels["acc"], other.sample_rate_hz,
+                             other.tach_pulse_times_s[late_revolutions:], 1, max_segments=3, **kw)
+    shift, match, evidence = gear_frame_shift(later, reference)
+    assert shift == (-late_revolutions) % 21
+    assert match > 0.9 and evidence > 100
+    aligned = shift_revolutions(later, shift)
+    gear_bins = reference.used & (np.arange(reference.n_bins) % 21 != 0)
+    a, b = aligned.mean[gear_bins], reference.mean[gear_bins]
+    assert abs(np.vdot(b, a)) / np.linalg.norm(a) / np.linalg.norm(b) > 0.95
+
+
+def test_an_ideal_gear_gives_no_frame_to_align() -> None:
+    t = np.arange(int(6.0 * FS)) / FS
+    # Pinion-periodic content (every shift looks the same) and noise only.
+    x = np.cos(2 * np.pi * 20 * F_REV * t) + 0.3 * np.cos(2 * np.pi * 3 * F_REV * t)
+    pulses = np.arange(0.003, 6.0 - 0.01, 1 / F_REV)
+    kw = dict(pinion_teeth=20, gear_teeth=21, samples_per_mesh=16)
+    noisy = [x + 0.05 * np.random.default_rng(seed).standard_normal(t.size) for seed in (1, 2)]
+    one = hunting_spectrum(noisy[0], FS, pulses, 1, **kw)
+    other = hunting_spectrum(noisy[1], FS, pulses[5:], 1, **kw)
+    assert gear_frame_shift(other, one) == (0, 0.0, 0.0)
