@@ -74,11 +74,11 @@ def parse_model(text: str, pinion_teeth: int, gear_teeth: int) -> Any:
 
 
 def check_mechanisms(names: tuple[str, ...] | None) -> tuple[str, ...]:
-    """The catalogue names to try (all fitted plug-ins when ``names`` is None)."""
-    from physics.reconcile import CATALOGUE
+    """The catalogue names to try (the default scan when ``names`` is None)."""
+    from physics.reconcile import CATALOGUE, DEFAULT_MECHANISMS
 
     if names is None:
-        return tuple(CATALOGUE)
+        return DEFAULT_MECHANISMS
     if not names:
         raise InputError(f"mechanisms: give at least one of {', '.join(CATALOGUE)} (or null)")
     unknown = [m for m in names if m not in CATALOGUE]

@@ -44,7 +44,8 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--mechanisms",
-        help="comma-separated catalogue names to try (default: every fitted plug-in)",
+        help="comma-separated catalogue names to try (default: every fitted plug-in but "
+        "speed_fluctuation, see docs/reconciliation.md)",
     )
     parser.set_defaults(func=run)
 
@@ -111,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
     from gearwatch.errors import InputError
     from ingest.manifest import load_manifest
     from physics.config import model_to_toml
-    from physics.reconcile import CATALOGUE, ReconcileOptions, reconcile
+    from physics.reconcile import CATALOGUE, DEFAULT_MECHANISMS, ReconcileOptions, reconcile
     from physics.reconcile.report import html_report
 
     campaign = load_manifest(args.campaign)
@@ -126,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"{args.model}: tooth counts differ from the manifest's rig")
     else:
         model = default_model(campaign, measured.sample_rate_hz)
-    mechanisms = tuple(CATALOGUE)
+    mechanisms = DEFAULT_MECHANISMS
     if args.mechanisms:
         mechanisms = tuple(m.strip() for m in args.mechanisms.split(",") if m.strip())
         unknown = [m for m in mechanisms if m not in CATALOGUE]

@@ -4,7 +4,9 @@ missing physics, show the fit improve. Entry point: :func:`reconcile`."""
 from physics.reconcile.catalogue import (
     CATALOGUE,
     CONFUSABLE,
+    DEFAULT_MECHANISMS,
     MECHANISM_NAMES,
+    NOT_SCANNED_BY_DEFAULT,
     UNAVAILABLE,
     Candidate,
 )
@@ -20,7 +22,9 @@ from physics.reconcile.observables import HuntingSpectrum, hunting_spectrum
 __all__ = [
     "CATALOGUE",
     "CONFUSABLE",
+    "DEFAULT_MECHANISMS",
     "MECHANISM_NAMES",
+    "NOT_SCANNED_BY_DEFAULT",
     "UNAVAILABLE",
     "Candidate",
     "Finding",

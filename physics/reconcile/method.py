@@ -53,6 +53,8 @@ from physics.config import GearPairModel, StructuralMode
 from physics.reconcile.catalogue import (
     CATALOGUE,
     CONFUSABLE,
+    DEFAULT_MECHANISMS,
+    NOT_SCANNED_BY_DEFAULT,
     UNAVAILABLE,
     Candidate,
     Mechanism,
@@ -89,7 +91,8 @@ class ReconcileOptions:
     samples_per_mesh: int = 64
     max_frequency_hz: float | None = None
     """Highest frequency fitted; default 0.4 × the sampling rate."""
-    mechanisms: tuple[str, ...] = tuple(CATALOGUE)
+    mechanisms: tuple[str, ...] = DEFAULT_MECHANISMS
+    """Catalogue names scanned (default: all but :data:`NOT_SCANNED_BY_DEFAULT`)."""
     max_findings: int = 4
     accept_delta_bic: float = -10.0
     """A candidate is accepted when its ΔBIC (look-elsewhere included) is below this."""
@@ -175,6 +178,8 @@ class ReconciliationResult:
     simulations: int = 0
     catalogue_unavailable: dict[str, str] = field(default_factory=lambda: dict(UNAVAILABLE))
     reference: dict[str, Any] | None = None
+    not_scanned: dict[str, str] = field(default_factory=dict)
+    """Fitted plug-ins this run did not try, and why."""
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -192,6 +197,7 @@ class ReconciliationResult:
             },
             "reference": self.reference,
             "catalogue_unavailable": self.catalogue_unavailable,
+            "not_scanned": self.not_scanned,
             "simulations": self.simulations,
             "timings_s": {k: _round(v) for k, v in self.timings_s.items()},
         }
@@ -930,6 +936,11 @@ def reconcile(
         timings_s=timings,
         simulations=fitter.fm.simulations,
         reference=reference_json,
+        not_scanned={
+            name: NOT_SCANNED_BY_DEFAULT.get(name, "not requested")
+            for name in CATALOGUE
+            if name not in options.mechanisms
+        },
     )
 
 

@@ -123,6 +123,7 @@ def test_sliding_friction_seen_off_the_line_of_action_is_found_with_its_coeffici
     assert data["findings"][0]["evidence"]["delta_bic"] < -100
     assert data["status"] == "explained", data["final"]
     assert data["catalogue_unavailable"] == {}
+    assert data["not_scanned"]["contact_loss"] == "not requested"  # FRICTION_OPTIONS asks for friction only
     assert result.updated_model.mesh.friction_coefficient == pytest.approx(mu, rel=1e-3)
 
 
@@ -196,3 +197,13 @@ def test_no_contact_loss_finding_at_high_load() -> None:
     data = reconcile(_measured(truth, 2.5, seed=9), base, options=CONTACT_OPTIONS).to_json()
     assert data["findings"] == [], data["findings"]
     assert data["status"] == "explained", data["final"]
+
+
+def test_speed_fluctuation_is_scanned_only_when_asked() -> None:
+    """One pulse per revolution at one speed: a shaft-locked speed fluctuation is scanned only on
+    request, and the JSON says why (``not_scanned``)."""
+    from physics.reconcile import DEFAULT_MECHANISMS, NOT_SCANNED_BY_DEFAULT, ReconcileOptions
+
+    assert "speed_fluctuation" not in ReconcileOptions().mechanisms
+    assert set(DEFAULT_MECHANISMS) | set(NOT_SCANNED_BY_DEFAULT) == set(CATALOGUE)
+    assert "pinion runout" in NOT_SCANNED_BY_DEFAULT["speed_fluctuation"]
