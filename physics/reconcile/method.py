@@ -70,10 +70,10 @@ from physics.reconcile.observables import (
 )
 
 FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
 
 FRAME_EVIDENCE = 10.0
 """The best gear-frame shift must beat every other by this χ² (odds > 150 : 1) to be applied."""
-ComplexArray = NDArray[np.complex128]
 
 
 @dataclass(frozen=True)
