@@ -308,7 +308,19 @@ class ProfileModification(Mechanism):
         )
 
 
-class LoadFluctuation(Mechanism):
+class _FractionPhasor(Mechanism):
+    """A modulation at a shaft order: params ``fraction``, ``phase_deg``; internal (A cos φ, A sin φ) in %."""
+
+    def to_vector(self, params: dict[str, float]) -> list[float]:
+        a, phi = params["fraction"] * 100.0, math.radians(params["phase_deg"])
+        return [a * math.cos(phi), a * math.sin(phi)]
+
+    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
+        c, s = float(vector[0]), float(vector[1])
+        return {"fraction": math.hypot(c, s) / 100.0, "phase_deg": math.degrees(math.atan2(s, c)) % 360.0}
+
+
+class LoadFluctuation(_FractionPhasor):
     """Output torque modulated at an output-shaft order: internal vector (A cos φ, A sin φ) in %."""
 
     name = "load_fluctuation"
@@ -318,14 +330,6 @@ class LoadFluctuation(Mechanism):
 
     def candidates(self, model: GearPairModel) -> list[Candidate]:
         return [Candidate(self.name, "gear", order=n) for n in self.orders]
-
-    def to_vector(self, params: dict[str, float]) -> list[float]:
-        a, phi = params["fraction"] * 100.0, math.radians(params["phase_deg"])
-        return [a * math.cos(phi), a * math.sin(phi)]
-
-    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
-        c, s = float(vector[0]), float(vector[1])
-        return {"fraction": math.hypot(c, s) / 100.0, "phase_deg": math.degrees(math.atan2(s, c)) % 360.0}
 
     def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
         op = model.operating
@@ -339,7 +343,7 @@ class LoadFluctuation(Mechanism):
         )
 
 
-class SpeedFluctuation(Mechanism):
+class SpeedFluctuation(_FractionPhasor):
     """Speed reference modulated at a pinion-shaft order: internal vector (A cos φ, A sin φ) in %.
 
     ``fraction`` is the set-point's relative amplitude; the speed loop and the shaft
@@ -353,14 +357,6 @@ class SpeedFluctuation(Mechanism):
 
     def candidates(self, model: GearPairModel) -> list[Candidate]:
         return [Candidate(self.name, "pinion", order=n) for n in self.orders]
-
-    def to_vector(self, params: dict[str, float]) -> list[float]:
-        a, phi = params["fraction"] * 100.0, math.radians(params["phase_deg"])
-        return [a * math.cos(phi), a * math.sin(phi)]
-
-    def from_vector(self, vector: np.ndarray) -> dict[str, float]:
-        c, s = float(vector[0]), float(vector[1])
-        return {"fraction": math.hypot(c, s) / 100.0, "phase_deg": math.degrees(math.atan2(s, c)) % 360.0}
 
     def apply(self, model: GearPairModel, candidate: Candidate, params: dict[str, float]) -> GearPairModel:
         return model.replace(
