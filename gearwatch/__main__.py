@@ -1,5 +1,5 @@
 import sys
 
-from gearwatch.cli import main
+from gearwatch.cli.main import main
 
 sys.exit(main())

@@ -1,0 +1,102 @@
+"""The ``gearwatch`` command line.
+
+Each sub-command lives in its own module under :mod:`gearwatch.cli.commands` with a
+``register(subparsers)`` function that adds its parser and sets ``func`` (a function
+taking the parsed arguments and returning the exit code); modules are found automatically. Heavy
+imports happen inside the command's function so that ``gearwatch --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from collections.abc import Sequence
+
+from gearwatch.floor.errors import GearwatchError
+
+
+class VersionAction(argparse.Action):
+    """``--version``: the version is read only when asked for (it costs an ``importlib.metadata``)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
+        from gearwatch.floor.version import package_version
+
+        parser.exit(message=f"gearwatch {package_version()}\n")
+
+
+def command_modules() -> list[str]:
+    """Every module in :mod:`gearwatch.cli.commands` is a sub-command (sorted by name).
+
+    Listed from the folder rather than with ``pkgutil.iter_modules``, which imports ``inspect``
+    (a tenth of ``--help``'s imports)."""
+    import gearwatch.cli.commands as package
+
+    names = {
+        entry.name.removesuffix(".py")
+        for folder in package.__path__
+        for entry in os.scandir(folder)
+        if entry.name.endswith(".py") and not entry.name.startswith("_")
+    }
+    return [f"{package.__name__}.{name}" for name in sorted(names)]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="gearwatch",
+        description="Condition monitoring for gearbox test rigs: per-tooth MCI and gear metrics.",
+    )
+    parser.add_argument("--version", action=VersionAction, nargs=0, help="show the version and exit")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for module_name in command_modules():
+        importlib.import_module(module_name).register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from gearwatch.floor.logs import configure_cli_logging
+
+    configure_cli_logging()
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except GearwatchError as error:
+        print(f"gearwatch: error: {error}", file=sys.stderr)
+        return error.exit_code
+    except KeyboardInterrupt:
+        print("gearwatch: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        # The reader went away (`gearwatch … --json | head`): not an error of ours. Point stdout
+        # at devnull so the interpreter's final flush cannot raise again (Python docs, SIGPIPE).
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE, as a shell reports a command killed by a closed pipe
+    except Exception as error:  # a bug, not bad input: still one line unless debugging
+        unavailable = _unavailable_database(error)
+        if unavailable is not None:
+            print(f"gearwatch: error: {unavailable}", file=sys.stderr)
+            return unavailable.exit_code
+        if os.environ.get("GEARWATCH_DEBUG"):
+            raise
+        print(
+            f"gearwatch: internal error: {type(error).__name__}: {error} "
+            "(set GEARWATCH_DEBUG=1 for a traceback)",
+            file=sys.stderr,
+        )
+        return 70
+
+
+def _unavailable_database(error: Exception) -> GearwatchError | None:
+    """A database that cannot be reached (or went away mid-command) as one clear line, not an
+    SQL dump. Every command commits per record, so running it again resumes."""
+    if not type(error).__module__.startswith("sqlalchemy"):
+        return None
+    from storage.db import database_unavailable
+
+    return database_unavailable(error)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,395 @@
+"""Records without a tachometer: the shaft angle from the mesh phase, and a tooth frame per campaign.
+
+Two steps of the per-record chain (:mod:`gearwatch.usecases.analyze`) for rigs without a tach, or a
+record whose tach channel is dead:
+
+1. :func:`mesh_phase_angle` — synthetic once-per-pinion-revolution pulses from the phase of a
+   mesh harmonic (:func:`dsp.tachless.tachless_shaft_angle`), on the accelerometer channel and
+   harmonic that give the steadiest pulses; the refusal reasons of :mod:`dsp.tachless` when
+   none does. The speed comes from ``[rig] nominal_pinion_rpm`` when given, else from the
+   comb of the spectrum's lines, checked against both shafts (the comb often locks on the
+   other wheel's shaft).
+2. :func:`place_in_tooth_frame` — without a tach there is no absolute tooth 1: the averages
+   are moved into the *campaign's* tooth frame by matching their tooth fingerprint to the
+   campaign's reference (:mod:`dsp.toothframe`), or refused with the correlation margin.
+
+The campaign frame is the tachometer's when the reference came from a tach record (a mixed
+campaign: tach-less days are aligned to the tach days, ``tooth1_pitch_angle_deg`` keeps its
+meaning), else the canonical frame of the first tach-less record: tooth 1's sector is centred
+on that record's first mesh-harmonic maximum after its first synthetic pulse.
+
+Pure: arrays and small dataclasses in and out; the caller stores the reference
+(:func:`fold_reference`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from dsp.tach import TachAnalysis, TachometerError, analyze_tachometer
+from dsp.tachless import (
+    TachlessError,
+    estimate_pair_speed,
+    line_prominence,
+    tachless_shaft_angle,
+)
+from dsp.toothframe import (
+    align_fingerprint,
+    circular_shift,
+    frame_delay_samples,
+    mesh_phase_position,
+    resample_periodic,
+    tooth_fingerprint,
+)
+from gearwatch.floor.results import AnalysisParameters, ChannelAnalysis, ToothFrameReference
+
+__all__ = [
+    "FOLD_RECORDS",
+    "FramePlacement",
+    "MeshPhaseAngle",
+    "PlacedAverages",
+    "fold_reference",
+    "mesh_phase_angle",
+    "place_in_tooth_frame",
+    "tach_frame_fingerprints",
+]
+
+MAX_HARMONIC = 8
+"""Mesh harmonics 1..8 (below 0.45 fs) are tried; the one giving the steadiest synthetic pulses is kept."""
+MAX_BANDWIDTH_ORDERS = 0.3
+"""Half-width of the mesh band (shaft orders); narrower when the other wheel's sidebands are
+closer (``0.75 × pinion/gear teeth``): their pattern repeats only once per hunting period."""
+HARMONICS_TRIED = 3
+"""…the three with the most prominent lines, each demodulated in full."""
+SPEED_HINT_FRACTION = 0.2
+"""The mesh line is looked for within ±20 % of the speed hint."""
+NO_HINT_REFUSAL = (
+    "tooth frame refused: the speed came from the spectrum ([rig] nominal_pinion_rpm not given), "
+    "which can pick a wrong line family and give a wrong angle (measured: 6 wrong days in 140, "
+    "docs/tachless.md); give the nominal speed for per-tooth results"
+)
+SPECTRUM_SEARCH_FRACTION = 0.05
+"""Around the speed found in the spectrum, the mesh line is looked for within ±5 % (a drifting
+speed smears the line; the tracked band follows it, :func:`dsp.tachless.mesh_ridge_cycles`)."""
+FOLD_RECORDS = 5
+"""The reference fingerprint is the mean of the first 5 records aligned with confidence: a noisy
+or spalled first record is diluted, and later changes (a growing spall) never enter it."""
+
+
+@dataclass(frozen=True)
+class MeshPhaseAngle:
+    """Synthetic pinion pulses analysed like a tach, and what ``quality.tachless`` reports."""
+
+    tach: TachAnalysis
+    summary: dict[str, Any]
+
+
+def _pulse_jitter_rev(pulse_times_s: np.ndarray) -> float:
+    """Scatter of the pulses about a smooth speed, in revolutions.
+
+    Independent angle errors of std σ (rev) give second differences of the pulse times of std
+    σ·√6 periods; a smooth speed change gives almost none.
+    """
+    if pulse_times_s.size < 4:
+        return math.nan
+    period = float(np.mean(np.diff(pulse_times_s)))
+    return float(np.std(np.diff(pulse_times_s, 2)) / (math.sqrt(6.0) * period))
+
+
+def _pinion_speed_candidates(
+    x: np.ndarray, sample_rate_hz: float, pinion_teeth: int, gear_teeth: int, hint_rpm: float | None
+) -> list[float]:
+    """Pinion speeds (Hz) worth trying: the hint, or the comb's speed read as either shaft's."""
+    if hint_rpm is not None:
+        return [hint_rpm / 60.0]
+    duration_s = x.size / sample_rate_hz
+    return [estimate_pair_speed(x, sample_rate_hz, pinion_teeth, gear_teeth,
+                                min_shaft_hz=10.0 / duration_s)]
+
+
+def _best_line(
+    x: np.ndarray, sample_rate_hz: float, pinion_teeth: int, candidates: list[float], search: float
+) -> tuple[float, list[int]]:
+    """The candidate speed whose mesh harmonics stand highest, and the harmonics by prominence."""
+    prominence, freq = line_prominence(x, sample_rate_hz)
+    bin_hz = float(freq[1])
+    best: tuple[float, float, list[int]] = (-math.inf, candidates[0], [1])
+    for shaft_hz in candidates:
+        heights: dict[int, float] = {}
+        for h in range(1, MAX_HARMONIC + 1):
+            expected = h * pinion_teeth * shaft_hz
+            if expected >= 0.45 * sample_rate_hz:
+                break
+            lo = max(1, int(expected * (1 - search) / bin_hz))
+            hi = min(prominence.size - 1, math.ceil(expected * (1 + search) / bin_hz) + 1)
+            heights[h] = float(prominence[lo:hi].max()) if hi > lo else -math.inf
+        if heights and max(heights.values()) > best[0]:
+            ranked = sorted(heights, key=lambda h: heights[h], reverse=True)
+            best = (max(heights.values()), shaft_hz, ranked)
+    return best[1], best[2]
+
+
+def mesh_phase_angle(
+    signals: Mapping[str, np.ndarray],
+    sample_rate_hz: float,
+    pinion_teeth: int,
+    gear_teeth: int,
+    params: AnalysisParameters,
+    *,
+    nominal_pinion_rpm: float | None = None,
+) -> MeshPhaseAngle | str:
+    """Once-per-pinion-revolution pulses from the mesh phase, or the reason there are none.
+
+    Every accelerometer channel and mesh harmonic 1…:data:`MAX_HARMONIC` with a line is tried
+    (:func:`dsp.tachless.tachless_shaft_angle`); the pulses with the smallest jitter
+    (:func:`_pulse_jitter_rev`) win and go through the tach checks of
+    :func:`dsp.tach.analyze_tachometer` (revolutions, speed range, speed variation) with
+    ``params``' limits. Returns a one-line reason (the first refusal of each channel) when
+    nothing works.
+    """
+    bandwidth = min(MAX_BANDWIDTH_ORDERS, 0.75 * min(1.0, pinion_teeth / gear_teeth))
+    refusals: list[str] = []
+    best: tuple[float, Any, str] | None = None
+    for name, samples in signals.items():
+        x = np.asarray(samples, dtype=np.float64)
+        try:
+            candidates = _pinion_speed_candidates(
+                x, sample_rate_hz, pinion_teeth, gear_teeth, nominal_pinion_rpm
+            )
+            search = SPEED_HINT_FRACTION if nominal_pinion_rpm is not None else SPECTRUM_SEARCH_FRACTION
+            shaft_hz, harmonics = _best_line(x, sample_rate_hz, pinion_teeth, candidates, search)
+        except TachlessError as error:
+            refusals.append(f"{name}: {error}")
+            continue
+        first_refusal = ""
+        for harmonic in harmonics[:HARMONICS_TRIED]:
+            try:
+                estimate = tachless_shaft_angle(
+                    x, sample_rate_hz, pinion_teeth, approx_shaft_hz=shaft_hz, harmonic=harmonic,
+                    bandwidth_orders=bandwidth, search_fraction=search, track_speed=True,
+                )
+            except TachlessError as error:
+                first_refusal = first_refusal or str(error)
+                continue
+            jitter = _pulse_jitter_rev(estimate.pulse_times_s)
+            if best is None or jitter < best[0]:
+                best = (jitter, estimate, name)
+        if first_refusal and (best is None or best[2] != name):
+            refusals.append(f"{name}: {first_refusal}")
+    if best is None:
+        return "; ".join(refusals) or "no accelerometer signal"
+    jitter, estimate, name = best
+    try:
+        tach = analyze_tachometer(
+            estimate.pulse_times_s, 1,
+            max_speed_variation=params.max_speed_variation,
+            min_revolutions=params.min_revolutions,
+            min_speed_rpm=params.min_speed_rpm,
+            max_speed_rpm=params.max_speed_rpm,
+        )
+    except TachometerError as error:
+        return f"synthetic pulses from {name}, harmonic {estimate.harmonic}: {error}"
+    summary = {
+        "channel": name,
+        "harmonic": int(estimate.harmonic),
+        "mesh_line_hz": float(estimate.mesh_line_hz),
+        "line_prominence_db": float(estimate.line_prominence_db),
+        "min_envelope_ratio": float(estimate.min_envelope_ratio),
+        "pulse_jitter_rev": float(jitter),
+        "speed_variation": float(estimate.speed_variation),
+        "bandwidth_orders": float(bandwidth),
+        "speed_from": "nominal_pinion_rpm" if nominal_pinion_rpm is not None else "spectrum",
+    }
+    return MeshPhaseAngle(tach=tach, summary=summary)
+
+
+# --------------------------------------------------------------------------- tooth frame
+
+
+@dataclass(frozen=True)
+class FramePlacement:
+    """How a tach-less record's averages are to be framed (see :func:`place_in_tooth_frame`)."""
+
+    reference: ToothFrameReference | None
+    """The campaign's reference for this channel; None: none yet (or not in campaign mode)."""
+    campaign_mode: bool
+    """False: no campaign context (one file on the command line), the record's own frame."""
+    record_sha256: str
+    refusal: str = ""
+    """Non-empty: per-tooth numbers are refused before any alignment, for this reason."""
+
+
+@dataclass(frozen=True)
+class PlacedAverages:
+    pinion_average: np.ndarray
+    gear_average: np.ndarray
+    tooth1_pitch_angle_deg: float
+    tooth_frame: dict[str, Any]
+    fingerprints: dict[str, np.ndarray]
+    """In the campaign frame, for :func:`fold_reference` (empty when the frame was refused)."""
+    pinion_delay_samples: float = 0.0
+    """``pinion_average = circular_shift(the record's own average, pinion_delay_samples)``: the
+    same shift is applied to the leave-one-out averages of the tooth score (:mod:`dsp.toothscore`)."""
+
+
+def _alignment_json(alignment: Any) -> dict[str, Any]:
+    return {
+        "shift_teeth": alignment.shift_teeth,
+        "correlation": round(float(alignment.correlation), 4),
+        "runner_up": round(float(alignment.runner_up), 4),
+        "margin": round(float(alignment.margin), 4),
+    }
+
+
+def tach_frame_fingerprints(
+    pinion_average: np.ndarray, gear_average: np.ndarray, pinion_teeth: int, gear_teeth: int
+) -> dict[str, np.ndarray]:
+    """Fingerprints of a tach record: the pinion's in the tach frame, the gear's canonical.
+
+    ``pinion_position`` (a 1-element array, mesh periods) is where the pinion average's first
+    mesh harmonic peaks in the tach frame.
+    """
+    per_tooth = pinion_average.size / pinion_teeth
+    position = mesh_phase_position(pinion_average, pinion_teeth)
+    return {
+        "pinion": circular_shift(tooth_fingerprint(pinion_average, pinion_teeth), position),
+        "pinion_position": np.array([position / per_tooth]),
+        "gear": tooth_fingerprint(gear_average, gear_teeth),
+    }
+
+
+def place_in_tooth_frame(
+    pinion_average: np.ndarray,
+    gear_average: np.ndarray,
+    pinion_teeth: int,
+    gear_teeth: int,
+    placement: FramePlacement,
+    *,
+    tach_tooth1_pitch_angle_deg: float,
+) -> PlacedAverages:
+    """Move a tach-less record's averages into the campaign's tooth frame (or say why not).
+
+    ``tooth_frame["kind"]``: ``campaign`` (aligned to the reference, or founding it:
+    ``founds_reference``), ``refused`` (ambiguous or non-matching pattern: per-tooth results
+    must not be stored; the averages stay canonical) or ``own`` (no campaign context: tooth 1
+    is the record's own first mesh-harmonic maximum — not comparable between records).
+    """
+    per_tooth = pinion_average.size / pinion_teeth
+    fingerprint = tooth_fingerprint(pinion_average, pinion_teeth)
+    gear_fingerprint = tooth_fingerprint(gear_average, gear_teeth)
+
+    def canonical(average: np.ndarray, teeth: int) -> np.ndarray:
+        return circular_shift(average, -mesh_phase_position(average, teeth))
+
+    own_delay = -mesh_phase_position(pinion_average, pinion_teeth)
+    own_pinion, own_gear = canonical(pinion_average, pinion_teeth), canonical(gear_average, gear_teeth)
+    if placement.refusal:
+        return PlacedAverages(own_pinion, own_gear, 0.0,
+                              {"kind": "refused", "reason": placement.refusal}, {}, own_delay)
+    if not placement.campaign_mode:
+        return PlacedAverages(own_pinion, own_gear, 0.0, {
+            "kind": "own",
+            "note": "no campaign reference: tooth 1 is centred on this record's first mesh-harmonic "
+                    "maximum; tooth numbers are not comparable with other records",
+        }, {"pinion": fingerprint, "pinion_position": np.array([0.0]), "gear": gear_fingerprint},
+            own_delay)
+    reference = placement.reference
+    if reference is None:
+        return PlacedAverages(own_pinion, own_gear, 0.0, {
+            "kind": "campaign",
+            "reference_frame": "mesh_phase",
+            "reference_sha256": placement.record_sha256,
+            "founds_reference": True,
+        }, {"pinion": fingerprint, "pinion_position": np.array([0.0]), "gear": gear_fingerprint},
+            own_delay)
+
+    reference_position = reference.pinion_position * per_tooth
+    reference_canonical = circular_shift(
+        resample_periodic(reference.pinion_fingerprint, pinion_average.size), -reference_position
+    )
+    alignment = align_fingerprint(fingerprint, reference_canonical, pinion_teeth)
+    frame: dict[str, Any] = {
+        "reference_frame": reference.frame,
+        "reference_sha256": reference.record_sha256,
+        "reference_records": reference.records,
+        "pinion": _alignment_json(alignment),
+    }
+    if alignment.shift_teeth is None:
+        frame.update(kind="refused", reason=f"tooth frame refused: {alignment.refusal}")
+        return PlacedAverages(own_pinion, own_gear, 0.0, frame, {}, own_delay)
+    pinion_delay = frame_delay_samples(
+        pinion_average, pinion_teeth, alignment.delay_samples, reference_position
+    )
+    pinion = circular_shift(pinion_average, pinion_delay)
+    fingerprints = {
+        "pinion": circular_shift(fingerprint, -alignment.delay_samples + reference_position),
+        "pinion_position": np.array([reference.pinion_position]),
+    }
+    gear = own_gear
+    if reference.gear_fingerprint is not None:
+        gear_alignment = align_fingerprint(gear_fingerprint, reference.gear_fingerprint, gear_teeth)
+        frame["gear"] = _alignment_json(gear_alignment)
+        if gear_alignment.shift_teeth is not None:
+            gear = circular_shift(
+                gear_average,
+                frame_delay_samples(gear_average, gear_teeth, gear_alignment.delay_samples, 0.0),
+            )
+            fingerprints["gear"] = circular_shift(gear_fingerprint, -gear_alignment.delay_samples)
+        else:
+            frame["gear"]["refusal"] = gear_alignment.refusal
+    frame["kind"] = "campaign"
+    tooth1 = tach_tooth1_pitch_angle_deg if reference.frame == "tachometer" else 0.0
+    return PlacedAverages(pinion, gear, tooth1, frame, fingerprints, float(pinion_delay))
+
+
+def fold_reference(
+    reference: ToothFrameReference | None, channel: ChannelAnalysis, record_sha256: str
+) -> ToothFrameReference | None:
+    """The campaign's reference after this accepted record (None: unchanged / nothing to keep).
+
+    * No reference yet: this record founds it (tach frame from a tach record, else its mesh frame).
+    * A tach record while the reference is a tach-less one: the frame is re-anchored on the
+      tachometer (later tach-less days are aligned to the tach days; earlier ones keep the
+      reference they name in their ``tooth_frame``).
+    * Otherwise the record's campaign-frame fingerprints are averaged in while the reference
+      holds fewer than :data:`FOLD_RECORDS` records.
+    """
+    prints = channel.frame_fingerprints
+    kind = channel.tooth_frame.get("kind")
+    if "pinion" not in prints or kind not in ("tachometer", "campaign"):
+        return None
+    frame: Literal["tachometer", "mesh_phase"] = "tachometer" if kind == "tachometer" else "mesh_phase"
+    position = float(prints["pinion_position"][0])
+    if reference is None or (reference.frame == "mesh_phase" and frame == "tachometer"):
+        return ToothFrameReference(
+            frame=frame, record_sha256=record_sha256,
+            pinion_fingerprint=np.asarray(prints["pinion"], dtype=np.float64),
+            pinion_position=position,
+            gear_fingerprint=None if "gear" not in prints else np.asarray(prints["gear"], dtype=np.float64),
+        )
+    if reference.records >= FOLD_RECORDS:
+        return None
+    n = reference.records
+
+    def mean(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+        folded = (n * resample_periodic(old, new.size) + new) / (n + 1)
+        rms = float(np.sqrt(np.mean(folded**2)))
+        return folded / rms if rms > 0 else folded
+
+    # both in the campaign frame already: a tach record's is the tach frame itself
+    pinion = mean(reference.pinion_fingerprint, np.asarray(prints["pinion"], dtype=np.float64))
+    gear = reference.gear_fingerprint
+    # a tach record's gear fingerprint is canonical but not aligned (the gear's starting tooth
+    # depends on where the record starts in the hunting period): only aligned ones are folded
+    if gear is not None and "gear" in prints and kind == "campaign":
+        gear = mean(gear, np.asarray(prints["gear"], dtype=np.float64))
+    return ToothFrameReference(
+        frame=reference.frame, record_sha256=reference.record_sha256,
+        pinion_fingerprint=pinion, pinion_position=reference.pinion_position,
+        gear_fingerprint=gear, records=n + 1,
+    )
