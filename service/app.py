@@ -10,11 +10,14 @@ from typing import Any
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
-from gearwatch.version import __version__
+from gearwatch.floor.settings import Settings, get_settings
+from gearwatch.floor.version import package_version
 from service.errors import install_error_handlers
 from service.metrics import MetricsMiddleware, RequestMetrics
 from service.queries import ResponseCache
-from service.settings import Settings, get_settings
+from service.schemas import ErrorBody
+from service.security import SecurityHeadersMiddleware
+from storage.db import create_db_engine, migrate, session_factory
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
 
@@ -41,6 +44,8 @@ OPENAPI_TAGS = [
         "missing physics named and fitted (issue 6).",
     },
     {"name": "alarms", "description": "Alarms, their history, acknowledgement and rules."},
+    {"name": "notifications", "description": "Alarm webhooks, the notification outbox and "
+     "every delivery attempt."},
     {"name": "admin", "description": "API keys and the audit log (admin role)."},
 ]
 
@@ -51,8 +56,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     The database is opened (and migrated when ``settings.auto_migrate``) at start-up,
     so creating the app is cheap and has no side effects.
     """
-    from service import routers
-    from storage.db import create_db_engine, migrate, session_factory
+    from service import (
+        routers,  # here: service.routers.dashboard imports STATIC_DIR from this module
+    )
 
     settings = settings or get_settings()
 
@@ -66,6 +72,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         factory = session_factory(engine)
         app.state.engine = engine
         app.state.session_factory = factory
+        if settings.job_runner == "inline":
+            from service.inline_jobs import resume_interrupted
+            from storage.raw_store import RawStore
+
+            resume_interrupted(factory, RawStore(settings.raw_store))
         try:
             yield
         finally:
@@ -73,7 +84,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     app = FastAPI(
         title="gearwatch",
-        version=__version__,
+        version=package_version(),
         description=DESCRIPTION,
         openapi_tags=OPENAPI_TAGS,
         lifespan=lifespan,
@@ -88,6 +99,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.trend_cache = ResponseCache()
     install_error_handlers(app)
     app.add_middleware(MetricsMiddleware, metrics=app.state.metrics)
+    app.add_middleware(SecurityHeadersMiddleware)
     for router in routers.ALL:
         app.include_router(router)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
@@ -104,6 +116,4 @@ def _pool_options(url: str) -> dict[str, Any]:
 
 
 def _error_model() -> type:
-    from service.schemas import ErrorBody
-
     return ErrorBody

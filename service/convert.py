@@ -8,9 +8,10 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
-from gearwatch.errors import NotFound
+from gearwatch.floor.errors import NotFound
 from service import schemas
 from storage.models import Alarm, AlarmEvent, AlarmRule, Campaign, Record, ResultVersion, Rig
+from storage.operator_queries import alarm_data
 from storage.repositories import (
     CampaignRepository,
     RecordRepository,
@@ -106,6 +107,7 @@ def record_out(record: Record, names: Names) -> schemas.RecordOut:
         speed_rpm=finite(record.speed_rpm),
         speed_variation=finite(record.speed_variation),
         revolutions=record.revolutions,
+        quality_score=finite((record.quality or {}).get("score")),
         processed_at=record.processed_at,
     )
 
@@ -121,6 +123,8 @@ def result_out(session: Session, result: ResultVersion, *, details: bool) -> sch
         speed_rpm=result.speed_rpm,
         revolutions=result.revolutions,
         samples_per_rev=result.samples_per_rev,
+        quality_score=finite(result.quality_score),
+        quality=result.quality or {},
     )
     if not details:
         return out
@@ -154,31 +158,15 @@ def result_out(session: Session, result: ResultVersion, *, details: bool) -> sch
                     if channel_id == ch.channel_id
                 ],
                 curves=curve_names.get(ch.channel.name, []),
+                quality=ch.quality or {},
             )
         )
     return out
 
 
 def alarm_out(alarm: Alarm, names: Names) -> schemas.AlarmOut:
-    return schemas.AlarmOut(
-        id=alarm.id,
-        rig_id=names.rig(alarm.rig_id),
-        channel=alarm.channel.name,
-        tooth=alarm.tooth,
-        indicator=alarm.indicator,
-        state=alarm.state,  # type: ignore[arg-type]
-        severity=alarm.severity,  # type: ignore[arg-type]
-        record_id=alarm.raised_record_id,
-        raised_at=alarm.raised_at,
-        last_value=finite(alarm.last_value) or 0.0,
-        last_score=finite(alarm.last_score) or 0.0,
-        baseline_centre=finite(alarm.baseline_centre) or 0.0,
-        baseline_spread=finite(alarm.baseline_spread) or 0.0,
-        acknowledged_by=alarm.acknowledged_by,
-        acknowledged_at=alarm.acknowledged_at,
-        ack_comment=alarm.ack_comment,
-        cleared_at=alarm.cleared_at,
-    )
+    cache = names.__dict__.setdefault("_alarm_cache", {})
+    return schemas.AlarmOut(**alarm_data(names.session, alarm, cache))
 
 
 def alarm_event_out(event: AlarmEvent) -> schemas.AlarmEventOut:
@@ -203,6 +191,9 @@ def rule_out(rule: AlarmRule) -> schemas.AlarmRuleOut:
         persistence=rule.persistence,
         spread_floor_fraction=rule.spread_floor_fraction,
         spread_floor_abs=rule.spread_floor_abs,
+        min_baseline_records=rule.min_baseline_records,
+        cusum_reference=rule.cusum_reference,
+        cusum_limit=rule.cusum_limit,
         enabled=rule.enabled,
         updated_at=rule.updated_at,
     )

@@ -11,8 +11,10 @@ from fastapi import Depends, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
-from gearwatch.errors import Forbidden, Unauthorized
-from service.settings import Settings
+from gearwatch.floor.errors import Forbidden, Unauthorized
+from gearwatch.floor.settings import Settings
+from gearwatch.usecases.keys import verify_api_key
+from storage.models import utcnow
 
 ROLE_RANK = {"viewer": 0, "operator": 1, "admin": 2}
 LAST_USED_RESOLUTION = dt.timedelta(minutes=1)
@@ -65,12 +67,9 @@ def get_current_key(
     db: DbSession,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
 ) -> Caller:
-    from storage.models import utcnow
-    from storage.repositories import ApiKeyRepository
-
     if credentials is None or credentials.scheme.lower() != "bearer" or not credentials.credentials:
         raise Unauthorized("an API key is required: Authorization: Bearer <key>")
-    key = ApiKeyRepository(db).verify(credentials.credentials, touch=False)
+    key = verify_api_key(db, credentials.credentials, touch=False)
     if key is None:
         raise Unauthorized("unknown or revoked API key")
     caller = Caller(key_id=key.id, prefix=key.prefix, name=key.name, role=key.role)

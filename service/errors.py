@@ -4,7 +4,7 @@ Every error body has the same shape (:class:`service.schemas.ErrorBody`)::
 
     {"error": {"code": "not_found", "message": "rig 'x' not found", "details": null}}
 
-``gearwatch.errors.GearwatchError`` subclasses carry their own ``http_status`` and
+``gearwatch.floor.errors.GearwatchError`` subclasses carry their own ``http_status`` and
 ``code``; request validation errors become 422 ``invalid_request``; Starlette's own
 HTTP errors (unknown path, wrong method) keep their status; database refusals are 422/409
 (503 when the database is down). Anything else is a bug:
@@ -23,7 +23,7 @@ from fastapi.responses import JSONResponse
 from sqlalchemy.exc import SQLAlchemyError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from gearwatch.errors import GearwatchError, Unauthorized
+from gearwatch.floor.errors import GearwatchError, ServiceUnavailable, Unauthorized
 
 logger = logging.getLogger("gearwatch.service")
 
@@ -51,6 +51,10 @@ def error_response(
 def _gearwatch_error(_request: Request, error: Exception) -> JSONResponse:
     assert isinstance(error, GearwatchError)
     headers = {"WWW-Authenticate": "Bearer"} if isinstance(error, Unauthorized) else None
+    if isinstance(error, ServiceUnavailable):
+        logger.error("%s: %s", error.code, error)
+        return error_response(503, error.code, str(error),
+                              headers={"Retry-After": str(error.retry_after_seconds)})
     if error.http_status >= 500:
         logger.error("internal error: %s", error, exc_info=error)
         return error_response(500, error.code, "internal error")
@@ -92,7 +96,8 @@ def _database_error(_request: Request, error: Exception) -> JSONResponse:
         return error_response(409, "conflict", "conflicts with stored data")
     if isinstance(error, sa_exc.OperationalError | sa_exc.TimeoutError):
         logger.error("database unavailable: %s", error)
-        return error_response(503, "database_unavailable", "the database is not available")
+        return error_response(503, "database_unavailable", "the database is not available",
+                              headers={"Retry-After": str(ServiceUnavailable.retry_after_seconds)})
     return _unexpected_error(_request, error)
 
 

@@ -1,101 +1,67 @@
-"""Prometheus metrics in the text exposition format (version 0.0.4), written by hand.
+"""Prometheus metrics (``prometheus_client``), in the text exposition format.
 
-Two families are kept in memory per process: a request counter and a request
-duration histogram, both labelled by method, route template (never the raw path,
-so ids do not explode the label space) and status code. Gauges read from the
-database at scrape time are appended by the ``/metrics`` route.
+Two families are kept in memory per application, in a registry of its own: a request counter
+and a request duration histogram, both labelled by method, route template (never the raw path,
+so ids do not explode the label space) and status code. Gauges read from the database at
+scrape time are appended by the ``/metrics`` route (:func:`gauge_lines`).
 """
 
 from __future__ import annotations
 
-import threading
 import time
-from collections import defaultdict
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 
+from prometheus_client import CollectorRegistry, Counter, Histogram, generate_latest
+from prometheus_client.core import GaugeMetricFamily, Metric
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 DURATION_BUCKETS_S = (0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0)
 
-LabelKey = tuple[str, str, str]
-
-
-def _escape(value: str) -> str:
-    return value.replace("\\", "\\\\").replace("\n", "\\n").replace('"', '\\"')
-
-
-def _labels(pairs: Iterable[tuple[str, str]]) -> str:
-    inner = ",".join(f'{name}="{_escape(value)}"' for name, value in pairs)
-    return "{" + inner + "}" if inner else ""
+LABELS = ("method", "route", "status")
 
 
 class RequestMetrics:
-    """Thread-safe request counters and duration histograms."""
+    """Request counters and duration histograms of one application (thread-safe)."""
 
     def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._count: dict[LabelKey, int] = defaultdict(int)
-        self._bucket_counts: dict[LabelKey, list[int]] = {}
-        self._sum_s: dict[LabelKey, float] = defaultdict(float)
+        self.registry = CollectorRegistry(auto_describe=False)
+        self._requests = Counter(
+            "gearwatch_http_requests", "HTTP requests handled.", LABELS, registry=self.registry
+        )
+        self._duration = Histogram(
+            "gearwatch_http_request_duration_seconds", "Time to handle a request.", LABELS,
+            buckets=DURATION_BUCKETS_S, registry=self.registry,
+        )
 
     def observe(self, method: str, route: str, status: int, duration_s: float) -> None:
-        key = (method, route, str(status))
-        with self._lock:
-            self._count[key] += 1
-            self._sum_s[key] += duration_s
-            buckets = self._bucket_counts.setdefault(key, [0] * len(DURATION_BUCKETS_S))
-            for i, upper in enumerate(DURATION_BUCKETS_S):
-                if duration_s <= upper:
-                    buckets[i] += 1
+        labels = (method, route, str(status))
+        self._requests.labels(*labels).inc()
+        self._duration.labels(*labels).observe(duration_s)
 
     def render(self) -> str:
-        lines = [
-            "# HELP gearwatch_http_requests_total HTTP requests handled.",
-            "# TYPE gearwatch_http_requests_total counter",
-        ]
-        with self._lock:
-            keys = sorted(self._count)
-            for key in keys:
-                lines.append(
-                    f"gearwatch_http_requests_total{_labels(self._label_pairs(key))} "
-                    f"{self._count[key]}"
-                )
-            lines += [
-                "# HELP gearwatch_http_request_duration_seconds Time to handle a request.",
-                "# TYPE gearwatch_http_request_duration_seconds histogram",
-            ]
-            for key in keys:
-                pairs = self._label_pairs(key)
-                for upper, n in zip(DURATION_BUCKETS_S, self._bucket_counts[key], strict=True):
-                    lines.append(
-                        "gearwatch_http_request_duration_seconds_bucket"
-                        f"{_labels([*pairs, ('le', repr(upper))])} {n}"
-                    )
-                lines.append(
-                    "gearwatch_http_request_duration_seconds_bucket"
-                    f"{_labels([*pairs, ('le', '+Inf')])} {self._count[key]}"
-                )
-                lines.append(
-                    f"gearwatch_http_request_duration_seconds_sum{_labels(pairs)} "
-                    f"{self._sum_s[key]:.6f}"
-                )
-                lines.append(
-                    f"gearwatch_http_request_duration_seconds_count{_labels(pairs)} "
-                    f"{self._count[key]}"
-                )
-        return "\n".join(lines) + "\n"
+        return generate_latest(self.registry).decode("utf-8")
 
-    @staticmethod
-    def _label_pairs(key: LabelKey) -> list[tuple[str, str]]:
-        return [("method", key[0]), ("route", key[1]), ("status", key[2])]
+
+class _Families:
+    """A collector of families built at scrape time."""
+
+    def __init__(self, families: list[Metric]) -> None:
+        self.families = families
+
+    def collect(self) -> Iterator[Metric]:
+        return iter(self.families)
 
 
 def gauge_lines(name: str, help_text: str, samples: Iterable[tuple[dict[str, str], float]]) -> str:
-    """One gauge family in text format."""
-    lines = [f"# HELP {name} {help_text}", f"# TYPE {name} gauge"]
+    """One gauge family in text format (values read at scrape time)."""
+    samples = list(samples)
+    names = sorted({key for labels, _ in samples for key in labels})
+    family = GaugeMetricFamily(name, help_text, labels=names)
     for labels, value in samples:
-        lines.append(f"{name}{_labels(sorted(labels.items()))} {value:g}")
-    return "\n".join(lines) + "\n"
+        family.add_metric([labels.get(key, "") for key in names], value)
+    registry = CollectorRegistry(auto_describe=False)
+    registry.register(_Families([family]))
+    return generate_latest(registry).decode("utf-8")
 
 
 def route_template(scope: Scope) -> str:

@@ -5,16 +5,18 @@ from __future__ import annotations
 from contextlib import AbstractContextManager
 from typing import Generic, TypeVar
 
-import numpy as np
 from sqlalchemy.orm import Session
 
 from service import schemas
+from storage.models import ToothIndicator
 
-BAND_HALF_WIDTH_SIGMAS = 3.0
-"""The band is centre ± 3 robust standard deviations (1.4826·MAD)."""
-MIN_BAND_RECORDS = 3
-"""Fewer baseline records than this give no band (a median of two is no baseline)."""
-DEFAULT_BASELINE_RECORDS = 10
+# One definition of the band, shared with the campaign report (re-exported here).
+from storage.operator_queries import BAND_HALF_WIDTH_SIGMAS as BAND_HALF_WIDTH_SIGMAS
+from storage.operator_queries import DEFAULT_BASELINE_RECORDS as DEFAULT_BASELINE_RECORDS
+from storage.operator_queries import MIN_BAND_RECORDS as MIN_BAND_RECORDS
+from storage.operator_queries import mci_band
+from storage.operator_queries import relative_to_median as relative_to_median
+from storage.operator_queries import robust_band as robust_band
 
 BodyT = TypeVar("BodyT")
 
@@ -44,43 +46,16 @@ def tooth_sectors(
     return sorted(sectors, key=lambda s: s.start_deg)
 
 
-def robust_band(curves: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pointwise median ± 3·1.4826·MAD over the first axis of a (records, samples) array."""
-    centre = np.median(curves, axis=0)
-    spread = 1.4826 * np.median(np.abs(curves - centre), axis=0)
-    return centre - BAND_HALF_WIDTH_SIGMAS * spread, centre + BAND_HALF_WIDTH_SIGMAS * spread
-
-
-def mci_baseline_band(session: Session, rig_pk: int, channel: str) -> schemas.BaselineBand | None:
-    """The MCI band of a rig's channel over its first accepted records (current results).
-
-    Only curves of the most common length take part (a re-analysis with other samples per
-    revolution changes the length). ``None`` with fewer than :data:`MIN_BAND_RECORDS`.
-    """
-    from storage.repositories import AlarmRuleRepository, RecordRepository
-
-    rule = AlarmRuleRepository(session).get_for(rig_pk, "mci_depth")
-    count = rule.baseline_records if rule is not None else DEFAULT_BASELINE_RECORDS
-    records = RecordRepository(session)
-    curves: list[np.ndarray] = []
-    for record in records.list(rig_id=rig_pk, status="accepted", limit=count):
-        result = records.current_result(record.id)
-        if result is None:
-            continue
-        found = records.curves(result.id, channel=channel, names=["mci"])
-        if found:
-            curves.append(found[0].values.astype(np.float64))
-    if not curves:
+def mci_baseline_band(
+    session: Session, rig_pk: int, channel: str, *, relative: bool = False
+) -> schemas.BaselineBand | None:
+    """The MCI band of a rig's channel (:func:`storage.operator_queries.mci_band`)."""
+    band = mci_band(session, rig_pk, channel, relative=relative)
+    if band is None:
         return None
-    lengths = [len(c) for c in curves]
-    common = max(set(lengths), key=lengths.count)
-    stack = np.stack([c for c in curves if len(c) == common])
-    stack = stack[np.all(np.isfinite(stack), axis=1)]
-    if len(stack) < MIN_BAND_RECORDS:
-        return None
-    lower, upper = robust_band(stack)
     return schemas.BaselineBand(
-        lower=[float(v) for v in lower], upper=[float(v) for v in upper], records=len(stack)
+        lower=[float(v) for v in band.lower], upper=[float(v) for v in band.upper],
+        records=band.records,
     )
 
 
@@ -96,8 +71,6 @@ def trend_version(session: Session, rig_pk: int) -> tuple[int, int]:
     it exists there.
     """
     import sqlalchemy as sa
-
-    from storage.models import ToothIndicator
 
     ti = ToothIndicator
     row = session.execute(

@@ -11,14 +11,23 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, AwareDatetime, BaseModel, ConfigDict, Field, model_validator
 
-from gearwatch.results import METRIC_NAMES, TOOTH_INDICATORS
+from gearwatch.floor.defaults import (
+    GLITCH_RANGE_FACTOR,
+    MAX_SAMPLES_PER_MESH,
+    MAX_SPEED_VARIATION,
+    MIN_SAMPLES_PER_MESH,
+    RECONCILE_MAX_FINDINGS,
+    REVOLUTION_OUTLIER_FACTOR,
+    SAMPLES_PER_MESH,
+)
+from gearwatch.floor.results import METRIC_NAMES, TOOTH_INDICATORS
 
 Role = Literal["viewer", "operator", "admin"]
 AlarmState = Literal["warning", "alarm", "acknowledged", "cleared"]
 RecordStatus = Literal["accepted", "rejected", "pending"]
-ToothIndicatorName = Literal["mci_depth", "diff_energy", "diff_kurtosis"]
+ToothIndicatorName = Literal["mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score"]
 AlarmIndicatorName = Literal[
-    "mci_depth", "diff_energy", "diff_kurtosis",
+    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score",
     "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
     "raw_rms", "raw_kurtosis",
 ]  # fmt: skip
@@ -167,6 +176,11 @@ class RecordOut(BaseModel):
     speed_rpm: float | None = None
     speed_variation: float | None = None
     revolutions: int | None = None
+    quality_score: float | None = Field(
+        default=None,
+        description="Data-quality score in [0, 1] of the current analysis (see `quality`): "
+        "revolutions, synchronous-to-noise ratio, speed variation, tach repairs, rejections.",
+    )
     processed_at: dt.datetime | None = None
 
 
@@ -182,6 +196,13 @@ class ToothOut(BaseModel):
     mci_depth: float | None = None
     diff_energy: float | None = None
     diff_kurtosis: float | None = None
+    mci_depth_se: float | None = Field(
+        default=None, description="Standard error of the MCI evidence from the record itself (Np)."
+    )
+    score: float | None = Field(
+        default=None,
+        description="MCI evidence against the record's other teeth, in its own standard errors.",
+    )
 
 
 class ChannelResultOut(BaseModel):
@@ -194,6 +215,11 @@ class ChannelResultOut(BaseModel):
     metrics: dict[str, float] = Field(examples=[{"rms": 0.12, "kurtosis": 3.1}])
     teeth: list[ToothOut]
     curves: list[str] = Field(examples=[["mci", "difference"]])
+    quality: dict[str, Any] = Field(
+        default_factory=dict,
+        description="This channel's data quality: `score`, `score_components`, `sync_to_noise_db`, "
+        "`rejected_revolutions`, `glitch_samples`, `dropout_samples`, `clipped_samples`.",
+    )
 
 
 class ResultOut(BaseModel):
@@ -206,6 +232,10 @@ class ResultOut(BaseModel):
     speed_rpm: float
     revolutions: int
     samples_per_rev: int
+    quality_score: float | None = Field(
+        default=None, description="Data-quality score in [0, 1] (`quality.score`)."
+    )
+    quality: dict[str, Any] = Field(default_factory=dict)
     channels: list[ChannelResultOut] = Field(default_factory=list)
 
 
@@ -216,19 +246,33 @@ class ResultList(BaseModel):
 class RecordDetail(RecordOut):
     quality: dict[str, Any] = Field(default_factory=dict)
     current_result: ResultOut | None = None
+    tooth_frame: dict[str, Any] | None = Field(
+        default=None,
+        description=(
+            "Which frame the per-tooth numbers are in (first accelerometer channel; every channel "
+            "in quality.tooth_frames): kind 'tachometer' (tooth 1 from the tach and "
+            "tooth1_pitch_angle_deg), 'campaign' (no tach: aligned to the campaign's reference "
+            "record, with the correlation margin), 'refused' (alignment ambiguous: no per-tooth "
+            "results), 'own' or 'none' (no shaft angle: whole-record raw metrics only)"
+        ),
+    )
 
 
 class AnalysisParametersIn(BaseModel):
-    """Analysis parameters (``gearwatch.results.AnalysisParameters``); omitted ones keep their
+    """Analysis parameters (``gearwatch.floor.results.AnalysisParameters``); omitted ones keep their
     defaults. Bounds keep the analysis meaningful; anything outside is a 422."""
 
     model_config = ConfigDict(extra="forbid")
-    samples_per_mesh: int = Field(default=64, ge=8, le=1024, examples=[32])
+    samples_per_mesh: int = Field(
+        default=SAMPLES_PER_MESH, ge=MIN_SAMPLES_PER_MESH, le=MAX_SAMPLES_PER_MESH, examples=[32]
+    )
     samples_per_rev_without_teeth: int = Field(default=1024, ge=64, le=65536)
     mci_form: Literal["robust", "literal"] = "robust"
     mci_window_samples: int | None = Field(default=None, ge=2, le=65536)
     mci_median_width: int | None = Field(default=None, ge=1, le=131071)
-    max_speed_variation: float = Field(default=0.10, gt=0, le=10)
+    max_speed_variation: float = Field(default=MAX_SPEED_VARIATION, gt=0, le=10)
+    glitch_range_factor: float = Field(default=GLITCH_RANGE_FACTOR, gt=0, le=1e6)
+    revolution_outlier_factor: float = Field(default=REVOLUTION_OUTLIER_FACTOR, gt=1, le=1e6)
     min_revolutions: int = Field(default=20, ge=2, le=1_000_000)
     min_speed_rpm: float = Field(default=1.0, gt=0, le=1e6)
     max_speed_rpm: float = Field(default=100_000.0, gt=0, le=1e7)
@@ -302,15 +346,24 @@ class CurvesOut(BaseModel):
 class TrendPoint(BaseModel):
     record_id: int
     taken_at: dt.datetime
+    label: str = Field(default="", description="The record's label (manifest or upload).")
 
 
 class TrendOut(BaseModel):
-    """``values[i][j]`` is the indicator of ``records[i]`` at ``teeth[j]`` (``null`` if absent)."""
+    """``values[i][j]`` is the indicator of ``records[i]`` at ``teeth[j]`` (``null`` if absent).
+    A whole-record indicator has one column whose tooth is ``null``."""
 
     rig_id: str = Field(examples=["rig-a"])
-    indicator: ToothIndicatorName
+    indicator: str = Field(examples=["mci_depth"])
+    title: str = Field(default="", examples=["MCI depth"])
+    scope: Literal["tooth", "record"] = Field(
+        default="tooth", description="Per pinion tooth, or one value per record."
+    )
+    unit: str = Field(
+        default="", description="Unit of the values (empty: dimensionless).", examples=["Np"]
+    )
     channel: str | None = Field(default=None, examples=["acc1"])
-    teeth: list[int] = Field(examples=[[1, 2, 3]])
+    teeth: list[int | None] = Field(examples=[[1, 2, 3]])
     records: list[TrendPoint]
     values: list[list[float | None]] = Field(examples=[[[0.02, 0.03, 0.41]]])
 
@@ -329,11 +382,16 @@ class AlarmOut(BaseModel):
     id: int = Field(examples=[3])
     rig_id: str = Field(examples=["rig-a"])
     channel: str = Field(examples=["acc1"])
-    tooth: int = Field(examples=[7], description="Pinion tooth (1-based); 0 for a record metric.")
+    campaign_id: str | None = Field(default=None, examples=["fatigue-2026-03"])
+    tooth: int | None = Field(
+        examples=[7], description="Pinion tooth (1-based); null for a whole-record indicator."
+    )
     indicator: str = Field(examples=["mci_depth"])
+    unit: str = Field(default="", description="Unit of the values (empty: dimensionless).")
     state: AlarmState
     severity: Literal["warning", "alarm"]
     record_id: int | None = Field(description="The record that raised the alarm.")
+    record_label: str = Field(default="", description="That record's label.")
     raised_at: dt.datetime = Field(
         description="``taken_at`` of the raising record.", examples=[TIMESTAMP_EXAMPLE]
     )
@@ -341,6 +399,9 @@ class AlarmOut(BaseModel):
     last_score: float = Field(description="Last value in baseline units (positive = worse).")
     baseline_centre: float
     baseline_spread: float
+    evidence: str | None = Field(
+        default=None, description="What raised the alarm: `level` or `cusum` (sequential test)."
+    )
     acknowledged_by: str | None = None
     acknowledged_at: dt.datetime | None = None
     ack_comment: str | None = None
@@ -383,6 +444,15 @@ class AlarmRuleIn(BaseModel):
     spread_floor_abs: float | None = Field(
         default=None, gt=0, le=1e9, description="Absolute spread floor (indicator's unit)."
     )
+    min_baseline_records: int | None = Field(
+        default=None, ge=1, le=10_000, description="Scoring starts after this many records."
+    )
+    cusum_reference: float | None = Field(
+        default=None, ge=0, le=1e6, description="CUSUM allowance k (baseline units)."
+    )
+    cusum_limit: float | None = Field(
+        default=None, gt=0, le=1e6, description="CUSUM decision limit h (baseline units)."
+    )
     enabled: bool | None = None
 
     @model_validator(mode="after")
@@ -404,6 +474,9 @@ class AlarmRuleOut(BaseModel):
     persistence: int
     spread_floor_fraction: float
     spread_floor_abs: float
+    min_baseline_records: int | None = None
+    cusum_reference: float | None = None
+    cusum_limit: float | None = None
     enabled: bool
     updated_at: dt.datetime | None = None
 
@@ -467,11 +540,13 @@ class ReconciliationIn(BaseModel):
         description="Catalogue names to try (default: every fitted plug-in).",
         examples=[["pinion_eccentricity", "tooth_spall"]],
     )
-    samples_per_mesh: int = Field(default=64, ge=8, le=1024)
+    samples_per_mesh: int = Field(
+        default=SAMPLES_PER_MESH, ge=MIN_SAMPLES_PER_MESH, le=MAX_SAMPLES_PER_MESH
+    )
     max_frequency_hz: float | None = Field(
         default=None, gt=0, le=1e6, description="Highest frequency fitted (default 0.4 × fs)."
     )
-    max_findings: int = Field(default=4, ge=0, le=16)
+    max_findings: int = Field(default=RECONCILE_MAX_FINDINGS, ge=0, le=16)
     forward_oversampling: int | None = Field(
         default=None,
         ge=1,
@@ -494,6 +569,13 @@ class ReconciliationLinks(BaseModel):
     model: str
 
 
+class ReconciliationProgress(BaseModel):
+    stage: str = Field(description="Where a reconciliation is: queued, reference: calibration, "
+                       "calibration, selection, intervals, done …", examples=["selection"])
+    fraction: float = Field(ge=0.0, le=1.0, description="Share of the run done (estimate).",
+                            examples=[0.42])
+
+
 class ReconciliationOut(BaseModel):
     id: int = Field(examples=[7])
     record_id: int = Field(examples=[42])
@@ -509,6 +591,10 @@ class ReconciliationOut(BaseModel):
         description="The result's status once done: explained, partly_explained, not_explained.",
     )
     error: str | None = Field(default=None, description="Why it failed.")
+    progress: ReconciliationProgress | None = Field(
+        default=None, description="Stage and fraction done (while running: updated every few "
+        "seconds; none for a failed one)."
+    )
     created_at: dt.datetime
     started_at: dt.datetime | None = None
     finished_at: dt.datetime | None = None

@@ -3,11 +3,14 @@
 * :mod:`storage.models` — SQLAlchemy 2 models (schema owned by ``alembic/versions``);
 * :mod:`storage.db` — engine and session factory for a URL (SQLite: WAL + foreign keys),
   ``migrate`` (= ``alembic upgrade head``), ``session_scope`` (the caller commits);
-* :mod:`storage.repositories` — every query: ``RigRepository``, ``CampaignRepository``,
-  ``RecordRepository``, ``TrendRepository``, ``AlarmRuleRepository``, ``AlarmRepository``,
-  ``ApiKeyRepository``, ``AuditRepository`` (they flush, never commit);
-* :mod:`storage.evaluation` — runs the alarm rules (:mod:`detection.alarms`) on a record;
+* :mod:`storage.repositories` — every query, one module per aggregate over a generic
+  ``Repository`` base: ``RigRepository``, ``CampaignRepository`` (rigs), ``RecordRepository``
+  (records), ``TrendRepository`` (trends), ``ReconciliationRepository``,
+  ``AlarmRuleRepository``, ``AlarmRepository`` (alarms), ``ApiKeyRepository`` (keys),
+  ``AuditRepository`` (audit) — they flush, never commit;
 * :mod:`storage.raw_store` — the content-addressed raw file store.
 
-The per-record job that ties them to the pipeline is :mod:`gearwatch.jobs`.
+Storage imports only the floor (:mod:`gearwatch.floor`) and :mod:`detection`; the use-cases that
+tie it to the pipeline and the alarm rules are in :mod:`gearwatch.usecases` (``ingest_file``,
+``alarms``).
 """

@@ -13,7 +13,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import sqlalchemy as sa
 from sqlalchemy.engine import make_url
@@ -34,6 +34,10 @@ def _sqlite_on_connect(dbapi_connection: Any, _record: Any) -> None:
         cursor.close()
 
 
+if TYPE_CHECKING:
+    from gearwatch.floor.errors import GearwatchError
+
+
 def create_db_engine(url: str, *, echo: bool = False, **kwargs: Any) -> sa.Engine:
     """An engine for ``url``; SQLite gets WAL, foreign keys and a busy timeout on every connection.
 
@@ -41,7 +45,7 @@ def create_db_engine(url: str, *, echo: bool = False, **kwargs: Any) -> sa.Engin
     ``search_path`` in the URL query (PostgreSQL) selects a schema:
     ``postgresql+psycopg://u@h/db?options=-csearch_path%3Dmyschema``.
     """
-    parsed = make_url(url)
+    parsed = database_url(url)
     if parsed.get_backend_name() == "sqlite":
         database = parsed.database
         if database and database != ":memory:" and not database.startswith("file:"):
@@ -51,12 +55,65 @@ def create_db_engine(url: str, *, echo: bool = False, **kwargs: Any) -> sa.Engin
         sa.event.listen(engine, "connect", _sqlite_on_connect)
         return engine
     kwargs.setdefault("pool_pre_ping", True)
+    kwargs.setdefault("connect_args", {}).setdefault("connect_timeout", 10)
     return sa.create_engine(parsed, echo=echo, **kwargs)
 
 
+SUPPORTED_URLS = "sqlite:///path/to/file.db or postgresql://user@host:port/database"
+
+
+def database_url(url: str) -> sa.URL:
+    """``url`` parsed, with PostgreSQL's bare schemes (``postgres://``, ``postgresql://``, as
+    Heroku-style and libpq URLs write them) on the installed psycopg 3 driver. Anything else
+    gearwatch cannot open is an :class:`InputError` naming the scheme (password hidden)."""
+    from sqlalchemy.exc import ArgumentError
+
+    from gearwatch.floor.errors import InputError
+
+    try:
+        parsed = make_url(url)
+    except ArgumentError:
+        raise InputError(f"not a database URL: {url.split('@')[-1]!r} (use {SUPPORTED_URLS})") from None
+    if parsed.drivername in ("postgres", "postgresql"):
+        parsed = parsed.set(drivername="postgresql+psycopg")
+    if parsed.get_backend_name() not in ("sqlite", "postgresql"):
+        raise InputError(
+            f"unsupported database {parsed.drivername!r} in "
+            f"{parsed.render_as_string(hide_password=True)} (use {SUPPORTED_URLS})"
+        )
+    return parsed
+
+
+def database_unavailable(error: Exception) -> GearwatchError | None:
+    """A :class:`~gearwatch.floor.errors.DatabaseUnavailable` for an error that says the database
+    cannot be reached or went away (else ``None``); its message is one line."""
+    import sqlalchemy.exc as sa_exc
+
+    from gearwatch.floor.errors import DatabaseUnavailable, InputError
+
+    if isinstance(error, sa_exc.NoSuchModuleError | sa_exc.ArgumentError):
+        return InputError(f"cannot open the database: {error} (use {SUPPORTED_URLS})")
+    if not isinstance(error, sa_exc.OperationalError | sa_exc.InterfaceError |
+                      sa_exc.TimeoutError):
+        return None
+    original = getattr(error, "orig", None) or error
+    reason = " ".join(str(original).split())[:300]
+    return DatabaseUnavailable(
+        f"database unavailable ({reason}); nothing was half-written: run the command again "
+        "to resume"
+    )
+
+
 def session_factory(engine: sa.Engine) -> sessionmaker[Session]:
-    """Sessions that keep loaded objects usable after commit (``expire_on_commit=False``)."""
-    return sessionmaker(bind=engine, expire_on_commit=False)
+    """Sessions that keep loaded objects usable after commit (``expire_on_commit=False``).
+
+    Their alarm state changes queue webhook notifications in the same transaction
+    (:mod:`storage.outbox`), delivered after the commit."""
+    from storage import outbox
+
+    factory = sessionmaker(bind=engine, expire_on_commit=False)
+    outbox.install(factory)
+    return factory
 
 
 @contextlib.contextmanager

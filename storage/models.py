@@ -218,6 +218,11 @@ class ResultVersion(Base):
     revolutions: Mapped[int]
     samples_per_rev: Mapped[int]
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    quality_score: Mapped[float | None]
+    """Data-quality score in [0, 1] of this analysis (``quality.score``; NULL for results stored
+    before it existed). Alarm statistics weight the record's evidence by it."""
+    quality: Mapped[dict[str, Any]] = mapped_column(sa.JSON, default=dict, server_default="{}")
+    """The record-level quality of this analysis (:class:`gearwatch.floor.results.Quality`)."""
 
     record: Mapped[Record] = relationship(back_populates="results")
     channels: Mapped[list[ChannelResult]] = relationship(
@@ -241,6 +246,8 @@ class ChannelResult(Base):
     worst_tooth: Mapped[int | None]
     baseline_stats: Mapped[dict[str, Any]] = mapped_column(sa.JSON, default=dict)
     """The record's contribution to running baselines (``residual_variance``, ``envelope_variance``)."""
+    quality: Mapped[dict[str, Any]] = mapped_column(sa.JSON, default=dict, server_default="{}")
+    """This channel's data quality (:class:`gearwatch.floor.results.ChannelQuality`)."""
 
     channel: Mapped[Channel] = relationship()
 
@@ -345,11 +352,40 @@ class Reconciliation(Base):
     reference_record: Mapped[Record | None] = relationship(foreign_keys=[reference_record_id])
 
 
+class ToothFrameReference(Base):
+    """A campaign's tooth-frame reference per accelerometer channel (issue 11).
+
+    Rigs without a tachometer have no absolute tooth 1: each tach-less record is aligned to this
+    fingerprint (:mod:`dsp.toothframe`, :mod:`gearwatch.usecases.tachless`). ``frame`` is
+    ``tachometer`` when it came from tach records (a mixed campaign keeps the tach's frame),
+    ``mesh_phase`` when from the first accepted tach-less record. Fingerprints are float32
+    bytes (:func:`float32_bytes`)."""
+
+    __tablename__ = "tooth_frame_references"
+    __table_args__ = (
+        sa.UniqueConstraint("campaign_id", "channel"),
+        _check_in("frame", ("tachometer", "mesh_phase"), "frame"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    campaign_id: Mapped[int] = mapped_column(sa.ForeignKey("campaigns.id", ondelete="CASCADE"))
+    channel: Mapped[str] = mapped_column(sa.String(200))
+    frame: Mapped[str] = mapped_column(sa.String(16))
+    record_sha256: Mapped[str] = mapped_column(sa.String(64))
+    """The record that founded the frame (its sha256: the provenance of every tooth number)."""
+    records: Mapped[int] = mapped_column(default=1)
+    """Records averaged into the fingerprints."""
+    pinion_position: Mapped[float] = mapped_column(default=0.0)
+    pinion_fingerprint: Mapped[bytes] = mapped_column(sa.LargeBinary)
+    gear_fingerprint: Mapped[bytes | None] = mapped_column(sa.LargeBinary)
+    updated_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow, onupdate=utcnow)
+
+
 class AlarmRule(Base):
     """Per rig and indicator: baseline size, levels in baseline units, persistence, hysteresis.
 
-    Indicators are per tooth (:data:`gearwatch.results.TOOTH_INDICATORS`) or whole-record
-    metrics (:data:`gearwatch.results.METRIC_NAMES`, tracked as tooth 0). See
+    Indicators are per tooth (:data:`gearwatch.floor.results.TOOTH_INDICATORS`) or whole-record
+    metrics (:data:`gearwatch.floor.results.METRIC_NAMES`, tracked as tooth 0). See
     :mod:`detection.alarms` for the semantics.
     """
 
@@ -367,6 +403,13 @@ class AlarmRule(Base):
     persistence: Mapped[int] = mapped_column(default=2)
     spread_floor_fraction: Mapped[float] = mapped_column(default=0.05)
     spread_floor_abs: Mapped[float] = mapped_column(default=1e-9)
+    min_baseline_records: Mapped[int | None] = mapped_column(default=None)
+    """Scoring starts after this many records, the baseline grows to ``baseline_records``
+    (short campaigns); NULL: a fixed baseline of ``baseline_records``."""
+    cusum_reference: Mapped[float | None] = mapped_column(default=None)
+    """CUSUM allowance k (baseline units); NULL with ``cusum_limit``: no sequential test."""
+    cusum_limit: Mapped[float | None] = mapped_column(default=None)
+    """CUSUM decision limit h (baseline units)."""
     enabled: Mapped[bool] = mapped_column(default=True)
     created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
     updated_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
@@ -418,6 +461,9 @@ class Alarm(Base):
     """Last value in baseline units (positive = worse)."""
     baseline_centre: Mapped[float]
     baseline_spread: Mapped[float]
+    evidence: Mapped[str | None] = mapped_column(sa.String(16), default=None)
+    """What raised the alarm: ``level`` or ``cusum`` (:attr:`detection.alarms.Transition.evidence`);
+    NULL for alarms raised before it was recorded."""
     acknowledged_by: Mapped[str | None] = mapped_column(sa.String(200))
     acknowledged_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
     ack_comment: Mapped[str | None] = mapped_column(sa.Text)
@@ -482,3 +528,66 @@ class AuditEntry(Base):
     target: Mapped[str] = mapped_column(sa.String(300), default="")
     at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
     details: Mapped[dict[str, Any]] = mapped_column(sa.JSON, default=dict)
+
+
+NOTIFICATION_STATUSES = ("pending", "delivered", "failed")
+
+
+class AlarmWebhook(Base):
+    """A rig's webhook: every alarm state change of the rig is POSTed to ``url`` as JSON
+    (besides the global ``GEARWATCH_ALARM_WEBHOOK_URL``)."""
+
+    __tablename__ = "alarm_webhooks"
+    __table_args__ = (sa.UniqueConstraint("rig_id", "url"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    rig_id: Mapped[int] = mapped_column(sa.ForeignKey("rigs.id", ondelete="CASCADE"), index=True)
+    url: Mapped[str] = mapped_column(sa.String(2000))
+    description: Mapped[str] = mapped_column(sa.String(200), default="")
+    enabled: Mapped[bool] = mapped_column(default=True)
+    created_by: Mapped[str] = mapped_column(sa.String(200), default="")
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+
+
+class AlarmNotification(Base):
+    """The outbox: one alarm state change for one destination, written in the same transaction
+    as the change, then delivered (with retries and back-off) by the process that made it."""
+
+    __tablename__ = "alarm_notifications"
+    __table_args__ = (
+        sa.Index("ix_alarm_notifications_status_next_attempt_at", "status", "next_attempt_at"),
+        _check_in("status", NOTIFICATION_STATUSES, "status"),
+    )
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    rig_id: Mapped[int] = mapped_column(sa.ForeignKey("rigs.id", ondelete="CASCADE"), index=True)
+    alarm_id: Mapped[int | None] = mapped_column(
+        sa.ForeignKey("alarms.id", ondelete="SET NULL"), index=True
+    )
+    webhook_id: Mapped[int | None] = mapped_column(
+        sa.ForeignKey("alarm_webhooks.id", ondelete="SET NULL")
+    )
+    """``None`` for the global webhook."""
+    url: Mapped[str] = mapped_column(sa.String(2000))
+    payload: Mapped[dict[str, Any]] = mapped_column(sa.JSON)
+    status: Mapped[str] = mapped_column(sa.String(16), default="pending")
+    attempts: Mapped[int] = mapped_column(default=0)
+    next_attempt_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    last_error: Mapped[str] = mapped_column(sa.Text, default="")
+    created_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    delivered_at: Mapped[dt.datetime | None] = mapped_column(UTCDateTime())
+
+
+class NotificationAttempt(Base):
+    """One delivery attempt of a notification: when, the HTTP status or the error."""
+
+    __tablename__ = "notification_attempts"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    notification_id: Mapped[int] = mapped_column(
+        sa.ForeignKey("alarm_notifications.id", ondelete="CASCADE"), index=True
+    )
+    at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow)
+    status_code: Mapped[int | None]
+    error: Mapped[str] = mapped_column(sa.Text, default="")
+    duration_ms: Mapped[float] = mapped_column(default=0.0)

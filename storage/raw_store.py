@@ -15,7 +15,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from gearwatch.errors import InputError
+from gearwatch.floor.errors import InputError
 
 _SHA256 = re.compile(r"^[0-9a-f]{64}$")
 _SUFFIX = re.compile(r"^(\.[A-Za-z0-9_-]{1,16}){0,3}$")

@@ -10,6 +10,8 @@ from service.routers import (
     campaigns,
     dashboard,
     health,
+    notifications,
+    overview,
     reconciliations,
     records,
     rigs,
@@ -18,10 +20,12 @@ from service.routers import (
 ALL: tuple[APIRouter, ...] = (
     health.router,
     rigs.router,
+    overview.router,
     campaigns.router,
     records.router,
     reconciliations.router,
     alarms.router,
+    notifications.router,
     admin.router,
     dashboard.router,
 )

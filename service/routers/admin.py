@@ -6,9 +6,11 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Query
 
+from gearwatch.usecases.keys import issue_api_key
 from service import schemas
 from service.deps import AdminKey, DbSession
 from service.routers.common import Limit, Offset, errors
+from storage.repositories import ApiKeyRepository, AuditRepository
 
 router = APIRouter(prefix="/api/v1", tags=["admin"])
 
@@ -30,8 +32,6 @@ def list_keys(
     _caller: AdminKey,
     include_revoked: Annotated[bool, Query(description="Also revoked keys.")] = False,
 ) -> schemas.ApiKeyList:
-    from storage.repositories import ApiKeyRepository
-
     keys = ApiKeyRepository(db).list(include_revoked=include_revoked)
     return schemas.ApiKeyList(items=[_key_out(k) for k in keys])
 
@@ -46,9 +46,7 @@ def list_keys(
 def create_key(
     body: schemas.ApiKeyCreate, db: DbSession, caller: AdminKey
 ) -> schemas.ApiKeyCreated:
-    from storage.repositories import ApiKeyRepository, AuditRepository
-
-    key, plaintext = ApiKeyRepository(db).create(name=body.name, role=body.role)
+    key, plaintext = issue_api_key(db, name=body.name, role=body.role)
     AuditRepository(db).add(
         who=caller.who,
         action="key.create",
@@ -66,8 +64,6 @@ def create_key(
     responses=errors(401, 403, 404, 422),
 )
 def revoke_key(key_id: KeyId, db: DbSession, caller: AdminKey) -> schemas.ApiKeyOut:
-    from storage.repositories import ApiKeyRepository, AuditRepository
-
     key = ApiKeyRepository(db).revoke(key_id)
     AuditRepository(db).add(who=caller.who, action="key.revoke", target=f"key:{key.prefix}")
     db.commit()
@@ -89,8 +85,6 @@ def audit(
     limit: Limit = 100,
     offset: Offset = 0,
 ) -> schemas.AuditList:
-    from storage.repositories import AuditRepository
-
     rows = AuditRepository(db).list(action=action, limit=limit, offset=offset)
     return schemas.AuditList(
         items=[schemas.AuditOut.model_validate(r, from_attributes=True) for r in rows]

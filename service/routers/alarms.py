@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
-from fastapi import APIRouter, Path, Query
+from fastapi import APIRouter, Path, Query, Response
 
 from service import schemas
 from service.convert import Names, alarm_event_out, alarm_out, rig_by_name
 from service.deps import CurrentKey, DbSession, OperatorKey
+from service.exports import CSV_MEDIA_TYPE, alarms_csv
 from service.routers.common import Limit, Offset, RigFilter, errors
+from storage.repositories import AlarmRepository, AuditRepository
 
 router = APIRouter(prefix="/api/v1/alarms", tags=["alarms"])
 
@@ -21,8 +23,9 @@ AlarmId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Alarm id.", examp
     response_model=schemas.AlarmList,
     summary="List alarms, newest first",
     description="`raised_at` is the `taken_at` of the record that raised the alarm. "
-    "`open=true` keeps alarms that are not cleared.",
-    responses=errors(401, 404, 422),
+    "`open=true` keeps alarms that are not cleared. `tooth` is null for a whole-record "
+    "indicator. `format=csv` answers text/csv.",
+    responses={200: {"content": {"text/csv": {}}}, **errors(401, 404, 422)},
 )
 def list_alarms(
     db: DbSession,
@@ -34,15 +37,24 @@ def list_alarms(
     ] = False,
     limit: Limit = 100,
     offset: Offset = 0,
-) -> schemas.AlarmList:
-    from storage.repositories import AlarmRepository
-
+    format: Annotated[
+        Literal["json", "csv"], Query(description="`csv`: one row per alarm (text/csv).")
+    ] = "json",
+) -> schemas.AlarmList | Response:
     rig_pk = None if rig_id is None else rig_by_name(db, rig_id).id
     rows = AlarmRepository(db).list(
         rig_id=rig_pk, state=state, open_only=open_only, limit=limit, offset=offset
     )
     names = Names(db)
-    return schemas.AlarmList(items=[alarm_out(a, names) for a in rows])
+    items = [alarm_out(a, names) for a in rows]
+    if format == "csv":
+        name = f"alarms-{rig_id}.csv" if rig_id else "alarms.csv"
+        return Response(
+            alarms_csv(items),
+            media_type=CSV_MEDIA_TYPE,
+            headers={"Content-Disposition": f'attachment; filename="{name}"'},
+        )
+    return schemas.AlarmList(items=items)
 
 
 @router.get(
@@ -52,8 +64,6 @@ def list_alarms(
     responses=errors(401, 404, 422),
 )
 def get_alarm(alarm_id: AlarmId, db: DbSession, _caller: CurrentKey) -> schemas.AlarmDetail:
-    from storage.repositories import AlarmRepository
-
     alarms = AlarmRepository(db)
     alarm = alarms.get(alarm_id)
     return schemas.AlarmDetail(
@@ -77,8 +87,6 @@ def acknowledge(
     caller: OperatorKey,
     body: schemas.AckIn | None = None,
 ) -> schemas.AlarmDetail:
-    from storage.repositories import AlarmRepository, AuditRepository
-
     comment = body.comment if body is not None else ""
     alarms = AlarmRepository(db)
     alarm = alarms.acknowledge(alarm_id, who=caller.who, comment=comment)

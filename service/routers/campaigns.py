@@ -7,10 +7,18 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Response
 
+from gearwatch.floor.errors import InputError, ManifestError
+from ingest.manifest import parse_manifest
 from service import schemas
 from service.convert import Names, campaign_by_name, campaign_out, rig_by_name
 from service.deps import CurrentKey, DbSession, OperatorKey
 from service.routers.common import CampaignName, RigFilter, errors
+from storage.repositories import (
+    AlarmRuleRepository,
+    AuditRepository,
+    CampaignRepository,
+    RigRepository,
+)
 
 router = APIRouter(prefix="/api/v1/campaigns", tags=["campaigns"])
 
@@ -32,8 +40,6 @@ MANIFEST_EXAMPLE: dict[str, Any] = {
 def list_campaigns(
     db: DbSession, _caller: CurrentKey, rig_id: RigFilter = None
 ) -> schemas.CampaignList:
-    from storage.repositories import CampaignRepository
-
     rig_pk = None if rig_id is None else rig_by_name(db, rig_id).id
     names = Names(db)
     return schemas.CampaignList(
@@ -73,15 +79,6 @@ def create_campaign(
     db: DbSession,
     caller: OperatorKey,
 ) -> schemas.CampaignOut:
-    from gearwatch.errors import InputError, ManifestError
-    from ingest.manifest import parse_manifest
-    from storage.repositories import (
-        AlarmRuleRepository,
-        AuditRepository,
-        CampaignRepository,
-        RigRepository,
-    )
-
     data = {k: v for k, v in manifest.items() if k != "records"}
     _refuse_control_characters(data, "manifest")
     try:
@@ -111,8 +108,6 @@ def create_campaign(
 
 def _refuse_control_characters(value: Any, where: str) -> None:
     """Names and units are printable text (PostgreSQL refuses NUL; none belongs in a name)."""
-    from gearwatch.errors import ManifestError
-
     if isinstance(value, str):
         if any(ord(c) < 0x20 or ord(c) == 0x7F for c in value):
             raise ManifestError(f"{where}: control characters are not allowed")

@@ -6,13 +6,13 @@ from __future__ import annotations
 from fastapi import APIRouter
 from fastapi.responses import FileResponse, RedirectResponse
 
+from service.app import STATIC_DIR
+
 router = APIRouter(include_in_schema=False)
 
 
 @router.get("/")
 def dashboard() -> FileResponse:
-    from service.app import STATIC_DIR
-
     return FileResponse(STATIC_DIR / "index.html", media_type="text/html")
 
 

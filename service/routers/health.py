@@ -6,11 +6,12 @@ import sqlalchemy as sa
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse, PlainTextResponse
 
-from gearwatch.version import __version__
+from gearwatch.floor.version import package_version
 from service import schemas
 from service.deps import CurrentKey, DbSession
 from service.metrics import gauge_lines
 from service.routers.common import errors
+from storage.repositories import AlarmRepository, RecordRepository
 
 router = APIRouter()
 
@@ -32,7 +33,7 @@ def health(request: Request) -> JSONResponse:
     body = schemas.Health(
         status="ok" if database == "ok" else "degraded",
         database=database,  # type: ignore[arg-type]
-        version=__version__,
+        version=package_version(),
     )
     return JSONResponse(body.model_dump(), status_code=200 if database == "ok" else 503)
 
@@ -51,8 +52,6 @@ def health(request: Request) -> JSONResponse:
     },
 )
 def metrics(request: Request, db: DbSession, _caller: CurrentKey) -> PlainTextResponse:
-    from storage.repositories import AlarmRepository, RecordRepository
-
     text = request.app.state.metrics.render()
     counts = RecordRepository(db).status_counts()
     text += gauge_lines(

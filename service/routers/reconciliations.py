@@ -9,11 +9,17 @@ from fastapi import APIRouter, BackgroundTasks, Path, Request
 from fastapi.responses import HTMLResponse, Response
 from sqlalchemy.orm import Session
 
-from gearwatch.errors import Conflict
+from gearwatch.floor.errors import Conflict
+from gearwatch.floor.settings import Settings
+from gearwatch.usecases.job_queue import enqueue_reconciliation
+from gearwatch.usecases.reconcile import ReconcileRequest
+from gearwatch.usecases.reconcile import create_reconciliation as create
 from service import schemas
 from service.deps import CurrentKey, DbSession, OperatorKey, SettingsDep
+from service.inline_jobs import release, reserve, run_reserved
 from service.routers.common import MAX_ID, RecordId, errors
-from service.settings import Settings
+from storage.raw_store import RawStore
+from storage.repositories import AuditRepository, ReconciliationRepository, RecordRepository
 
 if TYPE_CHECKING:
     from storage.models import Reconciliation
@@ -41,6 +47,7 @@ def _out(row: Reconciliation, *, details: bool = False) -> schemas.Reconciliatio
             code_version=row.code_version,
         ),
         "outcome": (row.result or {}).get("status") if row.status == "done" else None,
+        "progress": _progress(row),
         "error": (row.error or None) if row.status == "failed" else None,
         "created_at": row.created_at,
         "started_at": row.started_at,
@@ -59,6 +66,18 @@ def _out(row: Reconciliation, *, details: bool = False) -> schemas.Reconciliatio
         result=row.result if row.status == "done" else None,
         model_toml=row.model_toml,
     )
+
+
+def _progress(row: Reconciliation) -> schemas.ReconciliationProgress | None:
+    if row.status == "done":
+        return schemas.ReconciliationProgress(stage="done", fraction=1.0)
+    if row.status == "queued":
+        return schemas.ReconciliationProgress(stage="queued", fraction=0.0)
+    stored = (row.result or {}).get("progress") if row.status == "running" else None
+    if not isinstance(stored, dict):
+        return None
+    return schemas.ReconciliationProgress(stage=str(stored.get("stage", "")),
+                                          fraction=float(stored.get("fraction", 0.0)))
 
 
 @router.post(
@@ -86,11 +105,6 @@ def create_reconciliation(
     settings: SettingsDep,
     caller: OperatorKey,
 ) -> schemas.ReconciliationOut:
-    from gearwatch.reconcile_job import ReconcileRequest
-    from gearwatch.reconcile_job import create_reconciliation as create
-    from storage.raw_store import RawStore
-    from storage.repositories import AuditRepository
-
     request = ReconcileRequest(
         model_toml=body.model_toml,
         reference_record_id=body.reference_record_id,
@@ -101,7 +115,17 @@ def create_reconciliation(
         max_findings=body.max_findings,
         forward_oversampling=body.forward_oversampling,
     )
-    row = create(db, record_id, request, raw_store=RawStore(settings.raw_store))
+    inline = settings.job_runner != "broker"
+    if inline:
+        # Bounded in this process: one runs at a time, a few may wait; more is 503.
+
+        reserve()
+    try:
+        row = create(db, record_id, request, raw_store=RawStore(settings.raw_store))
+    except BaseException:
+        if inline:
+            release()
+        raise
     AuditRepository(db).add(
         who=caller.who,
         action="reconciliation.create",
@@ -122,19 +146,15 @@ def _enqueue(
     """On the workers' queue with ``job_runner=broker``; else in this process once the
     response is sent (a reconciliation takes minutes: never inside the request)."""
     if settings.job_runner == "broker":
-        from gearwatch.worker import enqueue_reconciliation
-
         enqueue_reconciliation(
             reconciliation_id,
             database_url=settings.database_url,
             raw_store=str(settings.raw_store),
         )
         return
-    from gearwatch.reconcile_job import run_reconciliation
-    from storage.raw_store import RawStore
 
     background.add_task(
-        run_reconciliation,
+        run_reserved,
         request.app.state.session_factory,
         RawStore(settings.raw_store),
         reconciliation_id,
@@ -150,8 +170,6 @@ def _enqueue(
 def list_reconciliations(
     record_id: RecordId, db: DbSession, _caller: CurrentKey
 ) -> schemas.ReconciliationList:
-    from storage.repositories import ReconciliationRepository, RecordRepository
-
     RecordRepository(db).get(record_id)
     rows = ReconciliationRepository(db).list_for_record(record_id)
     return schemas.ReconciliationList(items=[_out(r) for r in rows])
@@ -166,14 +184,10 @@ def list_reconciliations(
 def get_reconciliation(
     reconciliation_id: ReconciliationId, db: DbSession, _caller: CurrentKey
 ) -> schemas.ReconciliationOut:
-    from storage.repositories import ReconciliationRepository
-
     return _out(ReconciliationRepository(db).get(reconciliation_id), details=True)
 
 
 def _finished(db: Session, reconciliation_id: int) -> Reconciliation:
-    from storage.repositories import ReconciliationRepository
-
     row = ReconciliationRepository(db).get(reconciliation_id)
     if row.status != "done":
         reason = f": {row.error}" if row.status == "failed" and row.error else ""

@@ -8,11 +8,24 @@ import tempfile
 from pathlib import Path
 from typing import Annotated
 
-from fastapi import APIRouter, File, Form, Query, Response, UploadFile
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from gearwatch.errors import GearwatchError, InputError, NotFound
+from gearwatch.floor.errors import BrokerUnavailable, InputError, NotFound
+from gearwatch.floor.results import AnalysisParameters
+from gearwatch.floor.settings import Settings
+from gearwatch.usecases.ingest_file import (
+    JobResult,
+    campaign_config,
+    process_file,
+    record_suffix,
+    reprocess_record,
+)
+from gearwatch.usecases.job_queue import enqueue_record, is_broker_unavailable
+from ingest.sources import file_sha256
 from service import schemas
 from service.convert import (
     Names,
@@ -23,23 +36,24 @@ from service.convert import (
     rig_by_name,
 )
 from service.deps import Caller, CurrentKey, DbSession, OperatorKey, SettingsDep
+from service.queries import mci_baseline_band, relative_to_median, tooth_sectors
 from service.routers.common import CampaignName, Limit, Offset, RecordId, RigFilter, errors
-from service.settings import Settings
+from service.upload import (
+    UPLOAD_REQUEST_BODY,
+    ReceivedUpload,
+    check_declared_length,
+    receive_upload,
+)
+from storage.raw_store import RawStore
+from storage.repositories import AuditRepository, RecordRepository, RigRepository
 
 router = APIRouter(prefix="/api/v1", tags=["records"])
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]")
-
-
-class PayloadTooLarge(GearwatchError):
-    http_status = 413
-    code = "payload_too_large"
+INTEGRITY_RETRIES = 3
 
 
 def _job_out(db: Session, job: object) -> schemas.JobOut:
-    from gearwatch.jobs import JobResult
-    from storage.repositories import RecordRepository
-
     assert isinstance(job, JobResult)
     record = RecordRepository(db).get(job.record_id)
     return schemas.JobOut(
@@ -74,8 +88,6 @@ def list_records(
     limit: Limit = 100,
     offset: Offset = 0,
 ) -> schemas.RecordList:
-    from storage.repositories import RecordRepository
-
     filters = {
         "rig_id": None if rig_id is None else rig_by_name(db, rig_id).id,
         "campaign_id": None if campaign_id is None else campaign_by_name(db, campaign_id).id,
@@ -106,32 +118,46 @@ def list_records(
     "with its reason (still 201). The same file again changes nothing (200, `unchanged`). "
     "With `GEARWATCH_JOB_RUNNER=broker` the raw file is kept and its job queued for the "
     "Dramatiq workers (202, `queued`).",
+    openapi_extra={"requestBody": UPLOAD_REQUEST_BODY},
     responses={
         200: {"model": schemas.JobOut, "description": "Already ingested"},
         202: {"model": schemas.JobOut, "description": "Queued for the workers"},
         **errors(401, 403, 404, 413, 422),
     },
 )
-def upload_record(
+async def upload_record(
     campaign_id: CampaignName,
-    file: Annotated[UploadFile, File(description="The record file.")],
-    entry: Annotated[
-        str,
-        Form(
-            description="The manifest entry as JSON: taken_at (ISO 8601 with time zone), "
-            "optional label and file.",
-            examples=['{"taken_at": "2026-03-02T08:00:00Z", "label": "day 2"}'],
-        ),
-    ],
+    request: Request,
     response: Response,
     db: DbSession,
     settings: SettingsDep,
     caller: OperatorKey,
 ) -> schemas.JobOut:
-    from gearwatch.jobs import campaign_config, process_file
-    from storage.raw_store import RawStore
-    from storage.repositories import AuditRepository
+    # The body is read here, after the key and role dependencies: see service.upload.
+    check_declared_length(request, settings.max_upload_bytes)
+    folder = settings.spool_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=folder, prefix="upload-") as spool:
+        received = await receive_upload(request, Path(spool), settings.max_upload_bytes)
+        return await run_in_threadpool(
+            _ingest_upload, campaign_id, received, response, db, settings, caller
+        )
 
+
+def _ingest_upload(
+    campaign_id: str,
+    received: ReceivedUpload,
+    response: Response,
+    db: Session,
+    settings: Settings,
+    caller: Caller,
+) -> schemas.JobOut:
+    entry = received.fields.get("entry")
+    if received.path is None or entry is None:
+        missing = "file" if received.path is None else "entry"
+        raise InputError(f"the upload has no {missing!r} part")
+    if received.size == 0:
+        raise InputError("the uploaded file is empty")
     try:
         record_entry = schemas.RecordEntryIn.model_validate_json(entry)
     except ValidationError as error:
@@ -139,29 +165,41 @@ def upload_record(
         where = ".".join(str(p) for p in first.get("loc", ())) or "entry"
         raise InputError(f"entry: {where}: {first.get('msg', 'invalid')}") from None
     stored = campaign_by_name(db, campaign_id)
-    file_name = record_entry.file or Path(file.filename or "").name or "record"
-    with tempfile.TemporaryDirectory(dir=settings.upload_dir) as folder:
-        spooled = Path(folder) / (_UNSAFE.sub("_", Path(file_name).name) or "record")
-        _spool(file, spooled, settings)
-        if settings.job_runner == "broker":
-            response.status_code = 202
-            return _enqueue(db, stored.name, spooled, record_entry, file_name, settings, caller)
-        job = process_file(
-            db,
-            spooled,
-            campaign_config(stored),
-            raw_store=RawStore(settings.raw_store),
-            taken_at=record_entry.taken_at,
-            label=record_entry.label,
-            file_name=file_name,
-        )
-    AuditRepository(db).add(
-        who=caller.who,
-        action="record.upload",
-        target=f"record:{job.record_id}",
-        details={"campaign": stored.name, "file": file_name, "outcome": job.outcome},
-    )
-    db.commit()
+    file_name = record_entry.file or Path(received.filename).name or "record"
+    spooled = received.path
+    wanted = spooled.with_name(_UNSAFE.sub("_", Path(file_name).name)[-100:] or "record")
+    if wanted != spooled:
+        spooled = spooled.rename(wanted)
+    if settings.job_runner == "broker":
+        response.status_code = 202
+        return _enqueue(db, stored.name, spooled, record_entry, file_name, settings, caller)
+    config = campaign_config(stored)
+    for attempt in range(INTEGRITY_RETRIES + 1):
+        try:
+            job = process_file(
+                db,
+                spooled,
+                config,
+                raw_store=RawStore(settings.raw_store),
+                taken_at=record_entry.taken_at,
+                label=record_entry.label,
+                file_name=file_name,
+            )
+            AuditRepository(db).add(
+                who=caller.who,
+                action="record.upload",
+                target=f"record:{job.record_id}",
+                details={"campaign": stored.name, "file": file_name, "outcome": job.outcome},
+            )
+            db.commit()
+            break
+        except IntegrityError:
+            # The same file uploaded at the same moment by another request won the insert
+            # (PostgreSQL tells at once; SQLite serialises writers): run again, and find it
+            # stored, so every backend answers 200 `unchanged` as for a later upload.
+            db.rollback()
+            if attempt == INTEGRITY_RETRIES:
+                raise
     if job.outcome in ("unchanged", "reprocessed"):
         response.status_code = 200
     return _job_out(db, job)
@@ -177,23 +215,31 @@ def _enqueue(
     caller: Caller,
 ) -> schemas.JobOut:
     """Keep the raw file (the store is shared with the workers), then queue its job."""
-    from gearwatch.jobs import record_suffix
-    from gearwatch.worker import enqueue_record
-    from ingest.sources import file_sha256
-    from storage.raw_store import RawStore
-    from storage.repositories import AuditRepository
-
     sha256 = file_sha256(spooled)
-    kept = RawStore(settings.raw_store).keep(spooled, sha256, record_suffix(spooled))
-    message_id = enqueue_record(
-        campaign,
-        str(kept),
-        taken_at=entry.taken_at.isoformat(),
-        label=entry.label,
-        file_name=file_name,
-        database_url=settings.database_url,
-        raw_store=str(settings.raw_store),
-    )
+    store = RawStore(settings.raw_store)
+    suffix = record_suffix(spooled)
+    already_kept = store.contains(sha256, suffix)
+    kept = store.keep(spooled, sha256, suffix)
+    try:
+        message_id = enqueue_record(
+            campaign,
+            str(kept),
+            taken_at=entry.taken_at.isoformat(),
+            label=entry.label,
+            file_name=file_name,
+            database_url=settings.database_url,
+            raw_store=str(settings.raw_store),
+        )
+    except Exception as error:  # dramatiq's ConnectionError and pika's errors: broker down
+        if not is_broker_unavailable(error):
+            raise
+        if not already_kept:
+            # No message will ever name this file: keep no orphan in the raw store.
+            kept.unlink(missing_ok=True)
+        raise BrokerUnavailable(
+            "the job queue (message broker) is not available: nothing was kept, send the "
+            "file again later"
+        ) from None
     AuditRepository(db).add(
         who=caller.who,
         action="record.upload",
@@ -204,21 +250,6 @@ def _enqueue(
     return schemas.JobOut(outcome="queued", sha256=sha256, message_id=message_id)
 
 
-def _spool(upload: UploadFile, target: Path, settings: Settings) -> None:
-    """Copy the upload to ``target``, refusing more than ``settings.max_upload_bytes``."""
-    size = 0
-    with open(target, "wb") as out:
-        while chunk := upload.file.read(1 << 20):
-            size += len(chunk)
-            if size > settings.max_upload_bytes:
-                raise PayloadTooLarge(
-                    f"the file is larger than the limit of {settings.max_upload_bytes} bytes"
-                )
-            out.write(chunk)
-    if size == 0:
-        raise InputError("the uploaded file is empty")
-
-
 @router.get(
     "/records/{record_id}",
     response_model=schemas.RecordDetail,
@@ -226,8 +257,6 @@ def _spool(upload: UploadFile, target: Path, settings: Settings) -> None:
     responses=errors(401, 404, 422),
 )
 def get_record(record_id: RecordId, db: DbSession, _caller: CurrentKey) -> schemas.RecordDetail:
-    from storage.repositories import RecordRepository
-
     records = RecordRepository(db)
     record = records.get(record_id)
     current = records.current_result(record.id)
@@ -236,6 +265,7 @@ def get_record(record_id: RecordId, db: DbSession, _caller: CurrentKey) -> schem
         **base.model_dump(),
         quality=record.quality or {},
         current_result=None if current is None else result_out(db, current, details=True),
+        tooth_frame=next(iter(((record.quality or {}).get("tooth_frames") or {}).values()), None),
     )
 
 
@@ -246,8 +276,6 @@ def get_record(record_id: RecordId, db: DbSession, _caller: CurrentKey) -> schem
     responses=errors(401, 404, 422),
 )
 def list_results(record_id: RecordId, db: DbSession, _caller: CurrentKey) -> schemas.ResultList:
-    from storage.repositories import RecordRepository
-
     records = RecordRepository(db)
     records.get(record_id)
     return schemas.ResultList(
@@ -271,10 +299,6 @@ def reprocess(
     db: DbSession,
     caller: OperatorKey,
 ) -> schemas.JobOut:
-    from gearwatch.jobs import reprocess_record
-    from gearwatch.results import AnalysisParameters
-    from storage.repositories import AuditRepository, RecordRepository
-
     RecordRepository(db).get(record_id)
     params = AnalysisParameters.from_dict(body.parameters.model_dump())
     job = reprocess_record(db, record_id, params)
@@ -312,10 +336,15 @@ def curves(
         int | None, Query(ge=1, le=2**31 - 1, description="A result version (default current).")
     ] = None,
     band: Annotated[bool, Query(description="Add the MCI baseline band.")] = False,
+    relative: Annotated[
+        bool,
+        Query(
+            description="MCI curves (and the band's curves) minus their own median over the "
+            "revolution: the reference of the per-tooth MCI depth. Day-to-day level changes "
+            "then no longer move the whole curve away from the band."
+        ),
+    ] = False,
 ) -> schemas.CurvesOut:
-    from service.queries import mci_baseline_band, tooth_sectors
-    from storage.repositories import RecordRepository, RigRepository
-
     records = RecordRepository(db)
     record = records.get(record_id)
     if result_id is None:
@@ -335,7 +364,8 @@ def curves(
         raise NotFound(f"record {record_id} has no channel {channel!r}")
     samples_per_rev = next(c for c in channel_results if c.channel.name == channel).samples_per_rev
     data = {
-        c.name: finite_list(c.values)
+        c.name: finite_list(relative_to_median(c.values) if relative and c.name in
+                            ("mci", "mci_raw") else c.values)
         for c in records.curves(result.id, channel=channel, names=names)
     }
     rig = RigRepository(db).get(record.rig_id)
@@ -348,5 +378,5 @@ def curves(
         tooth1_pitch_angle_deg=rig.tooth1_pitch_angle_deg,
         curves=data,
         sectors=tooth_sectors(rig.pinion_teeth, rig.tooth1_pitch_angle_deg),
-        baseline_band=mci_baseline_band(db, rig.id, channel) if band else None,
+        baseline_band=mci_baseline_band(db, rig.id, channel, relative=relative) if band else None,
     )

@@ -5,19 +5,28 @@ from __future__ import annotations
 import gzip
 import hashlib
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Path, Query, Request, Response
 from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
+from gearwatch.floor.errors import InputError, NotFound
+from gearwatch.floor.results import TOOTH_INDICATORS
+from gearwatch.floor.settings import Settings
 from service import schemas
 from service.convert import rig_by_name, rig_out, rule_out
 from service.deps import CurrentKey, DbSession, OperatorKey
-from service.queries import ResponseCache
+from service.exports import CSV_MEDIA_TYPE, check_indicator, trend_answer, trend_csv_from_json
+from service.queries import ResponseCache, trend_version
 from service.routers.common import RigName, errors
-from service.settings import Settings
 from storage.models import Rig
+from storage.operator_queries import OperatorQueries
+from storage.repositories import (
+    AlarmRuleRepository,
+    AuditRepository,
+    RigRepository,
+)
 
 router = APIRouter(prefix="/api/v1/rigs", tags=["rigs"])
 
@@ -29,8 +38,6 @@ IndicatorName = Annotated[
 
 @router.get("", response_model=schemas.RigList, summary="List rigs", responses=errors(401))
 def list_rigs(db: DbSession, _caller: CurrentKey) -> schemas.RigList:
-    from storage.repositories import RigRepository
-
     return schemas.RigList(items=[rig_out(db, rig) for rig in RigRepository(db).list()])
 
 
@@ -44,13 +51,14 @@ def get_rig(rig_id: RigName, db: DbSession, _caller: CurrentKey) -> schemas.RigO
 @router.get(
     "/{rig_id}/trends",
     response_model=schemas.TrendOut,
-    summary="Per-tooth indicator over the rig's accepted records (records × teeth)",
+    summary="Any indicator over the rig's accepted records (records × teeth)",
     description="The current result version of every accepted record, in `taken_at` order. "
     "Without `tooth` every pinion tooth is returned; `values[i][j]` belongs to `records[i]` "
     "and `teeth[j]`. With several accelerometer channels, `channel` chooses one (default: the "
     "first by name). Answers carry an `ETag` (`If-None-Match` gives 304 while the rig's data "
     "is unchanged) and are gzip-compressed for clients that send `Accept-Encoding: gzip`.",
     responses={
+        200: {"content": {"text/csv": {}}},
         304: {"description": "Not modified (If-None-Match matched the ETag)"},
         **errors(401, 404, 422),
     },
@@ -61,7 +69,14 @@ async def trends(
     db: DbSession,
     _caller: CurrentKey,
     indicator: Annotated[
-        schemas.ToothIndicatorName, Query(description="Per-tooth indicator.")
+        str,
+        Query(
+            min_length=1,
+            max_length=64,
+            pattern=r"^[a-z0-9_]+$",
+            description="Any stored indicator: per tooth (mci_depth, diff_energy, "
+            "diff_kurtosis …) or whole record (rms, kurtosis, fm4, na4, raw_kurtosis …).",
+        ),
     ] = "mci_depth",
     tooth: Annotated[
         int | None, Query(ge=1, le=10_000, description="One pinion tooth (1-based).")
@@ -70,12 +85,18 @@ async def trends(
         str | None,
         Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["acc1"]),
     ] = None,
+    format: Annotated[
+        Literal["json", "csv"],
+        Query(description="`csv`: one row per record (id, time, label), one column per tooth."),
+    ] = "json",
 ) -> Response:
     # Trends only change when indicator rows are added. The serialized answer (plain and
     # gzip) is kept per (rig, indicator, tooth, channel) and served straight from memory while
     # the rig's data version, checked at most every ``trend_cache_seconds``, is unchanged: a
     # dashboard's poll then costs no database query, no thread and no serialization here.
     # (Settings read directly: a synchronous dependency would cost a thread hop.)
+
+    check_indicator(indicator)
     settings: Settings = request.app.state.settings
     cache: ResponseCache[CachedTrend] = request.app.state.trend_cache
     key = (rig_id, indicator, tooth, channel)
@@ -83,6 +104,12 @@ async def trends(
     answer = cache.get(key, version) if version is not None else None
     if answer is None:
         answer = await run_in_threadpool(_load_trend, db, cache, key)
+    if format == "csv":
+        return Response(
+            trend_csv_from_json(answer.body),
+            media_type=CSV_MEDIA_TYPE,
+            headers={"Content-Disposition": f'attachment; filename="{rig_id}-{indicator}.csv"'},
+        )
     gzipped = _accepts_gzip(request.headers.get("accept-encoding", ""))
     etag = answer.etag_gzip if gzipped else answer.etag
     headers = {"ETag": etag, "Vary": "Accept-Encoding"}
@@ -113,12 +140,13 @@ def _load_trend(
     db: Session, cache: ResponseCache[CachedTrend], key: tuple[str, str, int | None, str | None]
 ) -> CachedTrend:
     """Check the rig's data version in the database; build the answer if it is not cached."""
-    from service.queries import trend_version
-
     rig_name, indicator, tooth, channel = key
     rig = rig_by_name(db, rig_name)
     # The pinion tooth count is part of the version: it sets the columns of the answer.
-    version = (rig.id, rig.pinion_teeth, *trend_version(db, rig.id))
+    version: tuple[object, ...] = (rig.id, rig.pinion_teeth, *trend_version(db, rig.id))
+    if indicator not in TOOTH_INDICATORS:  # whole-record rows (rigs without teeth have no others)
+
+        version += OperatorQueries(db).metric_version(rig.id)
     cache.confirm(rig_name, version)
     answer = cache.get(key, version)
     if answer is not None:
@@ -168,24 +196,7 @@ def trend_json(
 ) -> bytes:
     """The trend answer's JSON: one query into a records × teeth matrix, serialized without
     re-validation (the values come from the database; NaN and missing cells become null)."""
-    from storage.repositories import TrendRepository
-
-    matrix = TrendRepository(db).trend_matrix(
-        rig.id, indicator, tooth, channel=channel, pinion_teeth=rig.pinion_teeth
-    )
-    point = schemas.TrendPoint.model_construct
-    answer = schemas.TrendOut.model_construct(
-        rig_id=rig.name,
-        indicator=indicator,
-        channel=matrix.channel,
-        teeth=matrix.teeth,
-        records=[
-            point(record_id=i, taken_at=t)
-            for i, t in zip(matrix.record_ids, matrix.taken_at, strict=True)
-        ],
-        values=matrix.values.tolist(),
-    )
-    return answer.model_dump_json().encode()
+    return trend_answer(db, rig, indicator, tooth, channel).model_dump_json().encode()
 
 
 @router.get(
@@ -195,8 +206,6 @@ def trend_json(
     responses=errors(401, 404),
 )
 def get_rules(rig_id: RigName, db: DbSession, _caller: CurrentKey) -> schemas.AlarmRules:
-    from storage.repositories import AlarmRuleRepository
-
     rig = rig_by_name(db, rig_id)
     rules = AlarmRuleRepository(db).list(rig.id)
     return schemas.AlarmRules(rig_id=rig.name, items=[rule_out(r) for r in rules])
@@ -217,9 +226,6 @@ def put_rule(
     db: DbSession,
     caller: OperatorKey,
 ) -> schemas.AlarmRuleOut:
-    from gearwatch.errors import InputError
-    from storage.repositories import AlarmRuleRepository, AuditRepository
-
     if body.indicator != indicator:
         raise InputError(
             f"the body's indicator {body.indicator!r} differs from the path's {indicator!r}"
@@ -251,9 +257,6 @@ def put_rule(
 def delete_rule(
     rig_id: RigName, indicator: IndicatorName, db: DbSession, caller: OperatorKey
 ) -> Response:
-    from gearwatch.errors import NotFound
-    from storage.repositories import AlarmRuleRepository, AuditRepository
-
     rig = rig_by_name(db, rig_id)
     rules = AlarmRuleRepository(db)
     rule = rules.get_for(rig.id, indicator)
