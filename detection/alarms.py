@@ -1,6 +1,6 @@
 """Alarm logic per rig, channel, tooth and indicator: baseline, levels, persistence, hysteresis.
 
-Pure: values in, states and transitions out; no database. :mod:`storage.evaluation` keeps one
+Pure: values in, states and transitions out; no database. :mod:`gearwatch.usecases.alarms` keeps one
 :class:`TrackState` per (rule, channel, tooth) and applies :func:`step` to every accepted
 record in the order the records were taken.
 
@@ -19,6 +19,21 @@ side of the baseline centre, see :class:`Baseline`):
   the tooth's sector) and the whole-record metrics (rms, peak, crest, kurtosis, FM0, FM4, NA4,
   NB4, M6A, M8A, ER all grow with damage). A ``lower_is_worse`` direction is supported for
   indicators that fall with damage.
+* **Short campaigns** — with ``min_baseline_records`` (m) set below ``baseline_records`` (n),
+  scoring starts after m records against the baseline of the records so far, and each later
+  record that scores below ``clear_level`` with the CUSUM at rest joins the baseline until it
+  holds n (a record that looks abnormal — or the first small step of a growing fault — is
+  never learned as normal). A spread learned from few records is
+  widened by the small-sample factor ``t_{0.975, c−1}/1.96`` (``c`` records; Student's t), so
+  that 3 repeatable records do not make every wiggle count. ``min_baseline_records = None``
+  keeps the fixed baseline of n records.
+* **Sequential test (CUSUM)** — with ``cusum_reference`` (k) and ``cusum_limit`` (h) set, each
+  scored record also updates Page's one-sided CUSUM ``S ← max(0, S + score − k)`` (score in
+  baseline units); ``S > h`` opens (or escalates to) an ``alarm`` without waiting for
+  persistence, since ``S`` already accumulates over records. A small, persistent, growing
+  change thus alarms before any single record reaches the level. ``S`` restarts at 0 when the
+  alarm clears. Each transition says which evidence raised it (:attr:`Transition.evidence`:
+  ``"level"`` or ``"cusum"``).
 * **Persistence** — an alarm opens when ``persistence`` (K) consecutive records score above
   ``warning_level`` (state ``warning``) or above ``alarm_level`` (state ``alarm``); an open
   warning escalates to ``alarm`` after K consecutive records above ``alarm_level``. One record
@@ -34,19 +49,20 @@ side of the baseline centre, see :class:`Baseline`):
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
+from scipy import stats
+
+from gearwatch.floor.defaults import MAD_TO_SIGMA
 
 Direction = Literal["higher_is_worse", "lower_is_worse"]
 Level = Literal["normal", "warning", "alarm"]
 TransitionKind = Literal["warning", "alarm", "cleared"]
-
-MAD_TO_SIGMA = 1.4826
-"""1.4826·MAD estimates the standard deviation of Gaussian data (1/Φ⁻¹(3/4))."""
 
 INDICATOR_DIRECTIONS: dict[str, Direction] = {
     # per tooth
@@ -67,6 +83,9 @@ INDICATOR_DIRECTIONS: dict[str, Direction] = {
     "er": "higher_is_worse",
     "raw_rms": "higher_is_worse",
     "raw_kurtosis": "higher_is_worse",
+    # per tooth, in standard errors of the record (dsp.toothscore)
+    "score": "higher_is_worse",
+    "mci_depth_se": "higher_is_worse",
 }
 """Which way is worse for each indicator gearwatch computes."""
 
@@ -101,6 +120,12 @@ class RuleSettings:
     spread_floor_fraction: float = 0.05
     spread_floor_abs: float = 1e-9
     direction: Direction = field(default="higher_is_worse")
+    min_baseline_records: int | None = None
+    """Start scoring after this many records (``None``: after ``baseline_records``)."""
+    cusum_reference: float | None = None
+    """CUSUM allowance k in baseline units (``None``: no sequential test)."""
+    cusum_limit: float | None = None
+    """CUSUM decision limit h in baseline units."""
 
     def __post_init__(self) -> None:
         if self.indicator in INDICATOR_DIRECTIONS and self.direction != (
@@ -118,6 +143,26 @@ class RuleSettings:
             )
         if self.spread_floor_fraction < 0 or self.spread_floor_abs <= 0:
             raise ValueError("spread floors must be >= 0 (fraction) and > 0 (absolute)")
+        if self.min_baseline_records is not None and not (
+            1 <= self.min_baseline_records <= self.baseline_records
+        ):
+            raise ValueError(
+                "min_baseline_records must be between 1 and baseline_records, got "
+                f"{self.min_baseline_records}"
+            )
+        if (self.cusum_reference is None) != (self.cusum_limit is None):
+            raise ValueError("cusum_reference and cusum_limit are set together or not at all")
+        if self.cusum_limit is not None and (
+            self.cusum_limit <= 0 or self.cusum_reference is None or self.cusum_reference < 0
+        ):
+            raise ValueError("cusum_limit must be > 0 and cusum_reference >= 0")
+
+    @property
+    def first_scored_record(self) -> int:
+        """Records collected before scoring starts."""
+        if self.min_baseline_records is None:
+            return self.baseline_records
+        return self.min_baseline_records
 
 
 @dataclass(frozen=True)
@@ -142,16 +187,28 @@ class Baseline:
         return signed / self.spread
 
 
+@functools.lru_cache(maxsize=256)
+def small_sample_factor(count: int) -> float:
+    """``t_{0.975, c−1} / 1.96``: how much wider a spread learned from ``c`` records is taken.
+
+    >>> round(small_sample_factor(3), 2), round(small_sample_factor(8), 2)
+    (2.2, 1.21)
+    """
+    return float(stats.t.ppf(0.975, max(count, 2) - 1) / stats.norm.ppf(0.975))
+
+
 def learn_baseline(
     values: Iterable[float],
     *,
     spread_floor_fraction: float = 0.05,
     spread_floor_abs: float = 1e-9,
     direction: Direction = "higher_is_worse",
+    widen_small_samples: bool = False,
 ) -> Baseline:
     """Median and floored 1.4826·MAD of the finite ``values``.
 
-    The floor is ``max(spread_floor_fraction·|median|, spread_floor_abs)``.
+    The floor is ``max(spread_floor_fraction·|median|, spread_floor_abs)``. With
+    ``widen_small_samples`` the MAD spread is first multiplied by :func:`small_sample_factor`.
 
     >>> learn_baseline([2.0, 2.0, 2.0]).spread  # MAD = 0: the floor, 5 % of the centre
     0.1
@@ -162,7 +219,10 @@ def learn_baseline(
     centre = float(np.median(array))
     mad = float(np.median(np.abs(array - centre)))
     floor = max(spread_floor_fraction * abs(centre), spread_floor_abs)
-    return Baseline(centre, max(MAD_TO_SIGMA * mad, floor), int(array.size), direction)
+    spread = MAD_TO_SIGMA * mad
+    if widen_small_samples:
+        spread *= small_sample_factor(int(array.size))
+    return Baseline(centre, max(spread, floor), int(array.size), direction)
 
 
 @dataclass(frozen=True)
@@ -179,6 +239,8 @@ class TrackState:
     """Consecutive records above the warning level."""
     above_alarm: int = 0
     below_clear: int = 0
+    cusum: float = 0.0
+    """Page's CUSUM of the scores (stays 0 when the rule has no sequential test)."""
 
     @property
     def alarm_state(self) -> str | None:
@@ -204,6 +266,7 @@ class TrackState:
             "above_warning": self.above_warning,
             "above_alarm": self.above_alarm,
             "below_clear": self.below_clear,
+            "cusum": self.cusum,
         }
 
     @classmethod
@@ -217,6 +280,7 @@ class TrackState:
             above_warning=int(data.get("above_warning", 0)),
             above_alarm=int(data.get("above_alarm", 0)),
             below_clear=int(data.get("below_clear", 0)),
+            cusum=float(data.get("cusum", 0.0)),
         )
 
 
@@ -228,6 +292,9 @@ class Transition:
     opened: bool
     value: float
     score: float
+    evidence: str = "level"
+    """What raised it: ``"level"`` (records above a level for ``persistence`` records) or
+    ``"cusum"`` (the sequential test); ``"level"`` for a clearing."""
 
 
 @dataclass(frozen=True)
@@ -253,17 +320,15 @@ def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
         return Evaluation(state, None)
     if state.baseline is None:
         collected = (*state.baseline_values, float(value))
-        if len(collected) < rule.baseline_records:
+        if len(collected) < rule.first_scored_record:
             return Evaluation(replace(state, baseline_values=collected), None)
-        baseline = learn_baseline(
-            collected,
-            spread_floor_fraction=rule.spread_floor_fraction,
-            spread_floor_abs=rule.spread_floor_abs,
-            direction=rule.direction,
-        )
-        return Evaluation(replace(state, baseline_values=collected, baseline=baseline), None)
+        return Evaluation(replace(state, **_grown_baseline(state.baseline_values, value, rule)), None)
 
     score = state.baseline.score(value)
+    cusum = state.cusum
+    if rule.cusum_reference is not None:
+        cusum = max(0.0, cusum + score - rule.cusum_reference)
+    cusum_fired = rule.cusum_limit is not None and cusum > rule.cusum_limit
     above_alarm = state.above_alarm + 1 if score > rule.alarm_level else 0
     above_warning = state.above_warning + 1 if score > rule.warning_level else 0
     below_clear = state.below_clear + 1 if score < rule.clear_level else 0
@@ -274,16 +339,20 @@ def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
         if above_alarm >= k:
             level = "alarm"
             transitions.append(Transition("alarm", True, value, score))
+        elif cusum_fired:
+            level = "alarm"
+            transitions.append(Transition("alarm", True, value, score, "cusum"))
         elif above_warning >= k:
             level = "warning"
             transitions.append(Transition("warning", True, value, score))
     elif below_clear >= k:
-        level, acknowledged = "normal", False
+        level, acknowledged, cusum = "normal", False, 0.0
         transitions.append(Transition("cleared", False, value, score))
-    elif level == "warning" and above_alarm >= k:
+    elif level == "warning" and (above_alarm >= k or cusum_fired):
         # Escalation: an acknowledged warning needs a new acknowledgement as an alarm.
         level, acknowledged = "alarm", False
-        transitions.append(Transition("alarm", False, value, score))
+        evidence = "level" if above_alarm >= k else "cusum"
+        transitions.append(Transition("alarm", False, value, score, evidence))
     new_state = replace(
         state,
         level=level,
@@ -291,8 +360,31 @@ def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
         above_warning=above_warning,
         above_alarm=above_alarm,
         below_clear=below_clear,
+        cusum=cusum,
     )
+    if (
+        len(state.baseline_values) < rule.baseline_records
+        and level == "normal"
+        and score < rule.clear_level
+        and cusum == 0.0
+    ):
+        # short campaigns: an early record that looks normal joins the baseline
+        new_state = replace(new_state, **_grown_baseline(state.baseline_values, value, rule))
     return Evaluation(new_state, score, tuple(transitions))
+
+
+def _grown_baseline(
+    values: tuple[float, ...], value: float, rule: RuleSettings
+) -> dict[str, Any]:
+    collected = (*values, float(value))
+    baseline = learn_baseline(
+        collected,
+        spread_floor_fraction=rule.spread_floor_fraction,
+        spread_floor_abs=rule.spread_floor_abs,
+        direction=rule.direction,
+        widen_small_samples=rule.min_baseline_records is not None,
+    )
+    return {"baseline_values": collected, "baseline": baseline}
 
 
 def acknowledge(state: TrackState) -> TrackState:

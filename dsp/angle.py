@@ -17,6 +17,11 @@ Method (what :func:`angle_resample` does, in order):
    (``0.5 × samples_per_rev × min speed``), a raised-cosine roll-off to gain 0 at that Nyquist
    frequency, 0 above. The record is extended by even reflection at both ends during filtering so
    that the circular FFT does not wrap the end onto the start. Otherwise no filter is applied.
+   Under speed drift the one cutoff set by the lowest speed means: no order above the grid's
+   Nyquist order aliases at any speed, and orders up to ``0.4 × samples_per_rev × min/max
+   speed`` pass with gain 1 in every revolution; higher orders are attenuated in the faster
+   revolutions (±20 % drift: min/max = 0.67, so 0.27 × samples_per_rev — 17 mesh harmonics at
+   64 samples per mesh period). Tested on a ±20 % chirp (``tests/dsp/test_angle.py``).
 4. **Interpolation.** The signal is interpolated at the grid times by a cardinal quintic
    B-spline (the degree-5 spline through every sample; Unser 1999, "Splines: a perfect fit for
    signal and image processing", IEEE SPM 16(6)): a recursive prefilter (two poles, causal and
@@ -60,6 +65,8 @@ import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
+from gearwatch.floor.defaults import SAMPLES_PER_MESH
+
 __all__ = [
     "DEFAULT_SAMPLES_PER_MESH",
     "INTERPOLATION_ORDER",
@@ -72,8 +79,8 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-DEFAULT_SAMPLES_PER_MESH = 64
-"""Samples per mesh period (El Badaoui et al. 2001 use 64, with a 64-sample MCI window)."""
+DEFAULT_SAMPLES_PER_MESH = SAMPLES_PER_MESH
+"""Samples per mesh period (:data:`gearwatch.floor.defaults.SAMPLES_PER_MESH`)."""
 
 INTERPOLATION_ORDER = 5
 """Degree of the cardinal B-spline used to interpolate the signal at the grid times."""

@@ -492,7 +492,7 @@ def gear_metrics(
     na4_baseline_variance: ArrayLike | None = None,
     nb4_baseline_variance: ArrayLike | None = None,
 ) -> dict[str, FloatOrArray]:
-    """All classic metrics of one record, keyed as :data:`gearwatch.results.AVERAGE_METRIC_NAMES`.
+    """All classic metrics of one record, keyed as :data:`gearwatch.floor.results.AVERAGE_METRIC_NAMES`.
 
     ``rms``, ``peak``, ``crest`` and ``kurtosis`` are those of the TSA ``average``; ``fm0`` and
     ``nb4`` use the TSA and ``teeth``; ``na4`` the residual; ``fm4``, ``m6a``, ``m8a`` the

@@ -27,7 +27,10 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from gearwatch.floor.defaults import MAD_TO_SIGMA, MAX_SPEED_VARIATION
+
 __all__ = [
+    "DEFAULT_MAX_SPEED_VARIATION",
     "PulseRepair",
     "TachAnalysis",
     "TachometerError",
@@ -40,8 +43,16 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
+DEFAULT_MAX_SPEED_VARIATION = MAX_SPEED_VARIATION
+"""Largest accepted (max − min)/mean of the per-revolution speed within a record
+(:data:`gearwatch.floor.defaults.MAX_SPEED_VARIATION`)."""
+
 LOCAL_PERIOD_WINDOW = 9
 """Intervals in the running median that gives the local pulse period (robust to 2 bad intervals)."""
+
+SMOOTH_STEP_LIMIT = 0.25
+"""A pulse train whose period never changes by more than this from one pulse to the next has no
+lost or spurious pulse (those change it by 50-100 %): its irregularity is the speed itself."""
 
 MIN_FIT_SAMPLES = 3
 """An edge with at least this many samples inside the hysteresis band is timed by a straight-line
@@ -51,6 +62,12 @@ two samples that bracket the threshold (exact for a linear ramp)."""
 
 class TachometerError(ValueError):
     """The tachometer signal cannot support synchronous averaging; ``str()`` is the reason."""
+
+
+class RecordOutOfTachLimits(TachometerError):
+    """The pulses are sound and measured the record itself failing: too few whole revolutions,
+    a speed outside the accepted range, or a speed that varies too much. Another angle source
+    (the mesh phase) would measure the same, so callers refuse the record rather than fall back."""
 
 
 @dataclass(frozen=True)
@@ -189,7 +206,7 @@ def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
     above = values[values >= mid]
     low_level = float(np.median(below)) if below.size else float(mid)
     high_level = float(np.median(above)) if above.size else float(mid)
-    noise_rms = float(1.4826 * np.median(np.abs(steps)) / np.sqrt(2.0)) if steps.size else 0.0
+    noise_rms = float(MAD_TO_SIGMA * np.median(np.abs(steps)) / np.sqrt(2.0)) if steps.size else 0.0
     return low_level, high_level, noise_rms
 
 
@@ -551,7 +568,7 @@ def analyze_tachometer(
     pulse_times_s: ArrayLike,
     pulses_per_rev: int,
     *,
-    max_speed_variation: float = 0.10,
+    max_speed_variation: float = DEFAULT_MAX_SPEED_VARIATION,
     min_revolutions: int = 20,
     min_speed_rpm: float = 1.0,
     max_speed_rpm: float = 100_000.0,
@@ -560,7 +577,9 @@ def analyze_tachometer(
     """Repair a pulse train, measure the tach-shaft speed and accept or refuse the record.
 
     Steps: :func:`repair_pulse_times`; refuse any interval still off the local period by more
-    than ``repair_tolerance`` (a gap or burst that one missing/extra pulse cannot explain); take
+    than ``repair_tolerance`` (a gap or burst that one missing/extra pulse cannot explain — or,
+    when every period is within :data:`SMOOTH_STEP_LIMIT` of the previous one, a speed that
+    changes too fast for order tracking, which the reason then says); take
     every ``pulses_per_rev``-th pulse from the first as the revolution marks; refuse if fewer
     than ``min_revolutions`` whole revolutions, if any per-revolution speed is outside
     ``[min_speed_rpm, max_speed_rpm]``, or if ``(max - min) / mean`` of the per-revolution speed
@@ -597,7 +616,7 @@ def analyze_tachometer(
     >>> analyze_tachometer(pulses, 1)
     Traceback (most recent call last):
     ...
-    dsp.tach.TachometerError: only 9 whole revolutions of the tach shaft (10 pulses at 1 per revolution); at least 20 are required
+    dsp.tach.RecordOutOfTachLimits: only 9 whole revolutions of the tach shaft (10 pulses at 1 per revolution); at least 20 are required
     """
     if isinstance(pulses_per_rev, bool) or int(pulses_per_rev) != pulses_per_rev:
         raise TachometerError(f"pulses per revolution must be an integer, got {pulses_per_rev!r}")
@@ -625,6 +644,16 @@ def analyze_tachometer(
     irregular = np.flatnonzero(np.abs(deviation) > repair_tolerance)
     if irregular.size:
         i = int(irregular[0])
+        # Each interval within a few % of its neighbours, yet far from the running median: the
+        # speed itself moves too fast (a run-up, a stop), not a lost or spurious pulse.
+        steps = np.abs(np.diff(intervals) / intervals[:-1])
+        if steps.size and float(np.max(steps)) <= SMOOTH_STEP_LIMIT:
+            raise TachometerError(
+                f"speed changes too fast for order tracking: the pulse period changes by up to "
+                f"{float(np.max(steps)):.1%} per pulse and is {1 + deviation[i]:.2f}× its "
+                f"{LOCAL_PERIOD_WINDOW}-pulse running median at {repaired[i]:.6g} s (accepted: "
+                f"within {repair_tolerance:.0%}, i.e. about {repair_tolerance / 4:.0%} per pulse)"
+            )
         raise TachometerError(
             f"irregular tachometer: {irregular.size} pulse interval(s) not explained by one missing "
             f"or extra pulse, first at {repaired[i]:.6g} s ({1 + deviation[i]:.2f}× the local period)"
@@ -633,7 +662,7 @@ def analyze_tachometer(
     rev_times = repaired[::pulses_per_rev]
     whole = rev_times.size - 1
     if whole < min_revolutions:
-        raise TachometerError(
+        raise RecordOutOfTachLimits(
             f"only {whole} whole revolutions of the tach shaft ({repaired.size} pulses at "
             f"{pulses_per_rev} per revolution); at least {min_revolutions} are required"
         )
@@ -642,13 +671,13 @@ def analyze_tachometer(
     min_rpm = float(np.min(rev_speed))
     max_rpm = float(np.max(rev_speed))
     if min_rpm < min_speed_rpm or max_rpm > max_speed_rpm:
-        raise TachometerError(
+        raise RecordOutOfTachLimits(
             f"tach-shaft speed {min_rpm:.6g}-{max_rpm:.6g} rpm is outside the accepted range "
             f"[{min_speed_rpm:g}, {max_speed_rpm:g}] rpm"
         )
     variation = (max_rpm - min_rpm) / mean_rpm
     if variation > max_speed_variation:
-        raise TachometerError(
+        raise RecordOutOfTachLimits(
             f"speed varies too much within the record: (max - min)/mean = {variation:.3f} "
             f"({min_rpm:.6g}-{max_rpm:.6g} rpm) exceeds {max_speed_variation:g}"
         )

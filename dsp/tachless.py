@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.fft
@@ -55,9 +56,11 @@ __all__ = [
     "ShaftAngleEstimate",
     "TachlessError",
     "estimate_mesh_order",
+    "estimate_pair_speed",
     "estimate_shaft_hz",
     "line_prominence",
     "mesh_line_hz",
+    "mesh_ridge_cycles",
     "shaft_pulse_times_from_mesh",
     "tachless_shaft_angle",
 ]
@@ -388,6 +391,87 @@ def estimate_mesh_order(
     return best
 
 
+def estimate_pair_speed(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    pinion_teeth: int,
+    gear_teeth: int,
+    *,
+    min_shaft_hz: float,
+    harmonics: int = 4,
+    peak_count: int = 20,
+    relative_tolerance: float = 3e-4,
+) -> float:
+    """Pinion speed (Hz) of a gear pair with known tooth counts, from its mesh-line family.
+
+    Each of the ``peak_count`` most prominent lines ``p`` proposes the mesh frequency
+    ``F = p / h`` (h = 1 … ``harmonics``). A proposal scores, over its first ``harmonics``
+    mesh harmonics ``h·F``, the capped log-prominence above ln 3 (:data:`COMB_THRESHOLD_NP`)
+    of the harmonic and, at half weight, of its first two sidebands of *both* shafts
+    (``h·F ± k·F/pinion_teeth`` and ``h·F ± k·F/gear_teeth``). Every proposal is scored on the
+    same number of terms, so a sub-multiple of the mesh frequency (half its harmonics fall
+    between the lines) and a stray line family (no sidebands where the tooth counts put them)
+    lose. Weak where the mesh harmonics are weak: give a speed hint when you can
+    (:func:`tachless_shaft_angle`'s ``approx_shaft_hz``); ``benchmarks/bench_tachless.py``
+    measures both.
+
+    Raises
+    ------
+    TachlessError
+        No proposal scores above zero.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fs, f1, z1, z2 = 10_000.0, 23.0, 19, 47
+    >>> t = np.arange(int(4 * fs)) / fs
+    >>> angle = 2 * np.pi * f1 * t
+    >>> x = sum(np.cos(h * z1 * angle) * (1 + 0.2 * np.cos(angle) + 0.2 * np.cos(angle * z1 / z2))
+    ...         for h in (1, 2, 3))
+    >>> x = x + 0.5 * np.random.default_rng(0).standard_normal(t.size)
+    >>> round(estimate_pair_speed(x, fs, z1, z2, min_shaft_hz=2.0), 2)
+    23.0
+    """
+    prominence, freq = line_prominence(signal, sample_rate_hz)
+    bin_hz = float(freq[1])
+    max_hz = 0.45 * sample_rate_hz
+    low_hz = min_shaft_hz * pinion_teeth
+    peaks = _peak_bins(prominence, int(low_hz / bin_hz), int(max_hz / bin_hz), peak_count)
+    proposals = sorted({
+        _refined_bin(prominence, int(b)) * bin_hz / h
+        for b in peaks for h in range(1, harmonics + 1)
+        if _refined_bin(prominence, int(b)) * bin_hz / h >= low_hz
+    })
+    if not proposals:
+        raise TachlessError("no spectral line in the mesh-frequency search range")
+
+    def height(f_hz: float) -> float:
+        if not 0 < f_hz < max_hz:
+            return 0.0
+        c = round(f_hz / bin_hz)
+        reach = max(2, math.ceil(relative_tolerance * f_hz / bin_hz))
+        best = float(prominence[max(1, c - reach) : min(prominence.size - 1, c + reach + 1)].max(initial=0.0))
+        return max(0.0, min(best, COMB_CAP_NP) - COMB_THRESHOLD_NP)
+
+    scores = []
+    for mesh_hz in proposals:
+        score = 0.0
+        for h in range(1, harmonics + 1):
+            score += height(h * mesh_hz)
+            for k in (1, 2):
+                for teeth in (pinion_teeth, gear_teeth):
+                    score += 0.5 * (height(h * mesh_hz + k * mesh_hz / teeth)
+                                    + height(h * mesh_hz - k * mesh_hz / teeth))
+        scores.append(score)
+    best = int(np.argmax(scores))
+    if not scores[best] > 0.0:
+        raise TachlessError(
+            f"no mesh-line family of a {pinion_teeth}/{gear_teeth} pair in the spectrum "
+            f"(best score {scores[best]:.1f} ≤ 0)"
+        )
+    return float(proposals[best] / pinion_teeth)
+
+
 def mesh_line_hz(
     signal: ArrayLike,
     sample_rate_hz: float,
@@ -453,6 +537,7 @@ def tachless_shaft_angle(
     bandwidth_orders: float = 0.3,
     offset_mesh_periods: int = 0,
     search_fraction: float = 0.05,
+    track_speed: bool = False,
 ) -> ShaftAngleEstimate:
     """Shaft angle from the phase of one mesh harmonic; synthetic once-per-rev pulses.
 
@@ -483,6 +568,12 @@ def tachless_shaft_angle(
         Move the angle origin by this many mesh periods (aligning two records of one rig).
     search_fraction : float
         Relative search half-width for the mesh line around the expectation.
+    track_speed : bool
+        Follow a drifting speed: the mesh line's frequency is first tracked over short
+        windows (:func:`mesh_ridge_cycles`), and the band is taken around that moving line
+        (heterodyne with the tracked phase, then the low-pass of ``bandwidth_orders``) instead
+        of around a fixed frequency. Without it the speed may change by at most about
+        ``bandwidth_orders / (harmonic × mesh_order)`` over the record (0.4 % for 80 teeth).
 
     Returns
     -------
@@ -524,7 +615,15 @@ def tachless_shaft_angle(
     # line into FM sidebands, and the tallest of them need not be the carrier.
     line_hz = _power_centroid_hz(x, sample_rate_hz, line_hz, bandwidth_orders * line_hz / cycles_per_rev)
     shaft_hz = line_hz / cycles_per_rev
-    band = _analytic_band(x, sample_rate_hz, line_hz, bandwidth_orders * shaft_hz)
+    if track_speed:
+        ridge_cycles = mesh_ridge_cycles(x, sample_rate_hz, line_hz, search_fraction=search_fraction)
+        band = _analytic_band(
+            x * np.exp(-2j * np.pi * ridge_cycles), sample_rate_hz, 0.0, bandwidth_orders * shaft_hz,
+            two_sided=True,
+        )
+    else:
+        ridge_cycles = np.zeros(x.size)
+        band = _analytic_band(x, sample_rate_hz, line_hz, bandwidth_orders * shaft_hz)
 
     # Keep the span unaffected by the circular filter's wrap-around.
     edge = math.ceil(EDGE_REVOLUTIONS_PER_INVERSE_BAND / bandwidth_orders * sample_rate_hz / shaft_hz)
@@ -534,6 +633,7 @@ def tachless_shaft_angle(
             f"dropping {edge} samples at each end (band-pass edges)"
         )
     kept = band[edge : x.size - edge]
+    kept_ridge = ridge_cycles[edge : x.size - edge]
     envelope = np.abs(kept)
     envelope_ratio = float(envelope.min() / np.median(envelope))
     if envelope_ratio < MIN_ENVELOPE_RATIO:
@@ -542,7 +642,7 @@ def tachless_shaft_angle(
             f"{envelope_ratio:.3f} of its median (a phase slip); try another harmonic or a narrower band"
         )
     # Mesh phase in mesh periods (cycles of the fundamental), increasing with time.
-    mesh_phase = np.unwrap(np.angle(kept)) / (2.0 * np.pi * harmonic)
+    mesh_phase = (np.unwrap(np.angle(kept)) / (2.0 * np.pi) + kept_ridge) / harmonic
     if np.min(np.diff(mesh_phase)) <= 0.0:
         raise TachlessError(
             f"the band around {line_hz:.6g} Hz is not clean: its phase does not advance steadily "
@@ -634,9 +734,70 @@ def _power_centroid_hz(x: FloatArray, sample_rate_hz: float, centre_hz: float, h
     return float(np.sum(freq[inside] * power[inside]) / np.sum(power[inside]))
 
 
-def _analytic_band(x: FloatArray, sample_rate_hz: float, centre_hz: float, half_width_hz: float) -> NDArray[np.complex128]:
+def mesh_ridge_cycles(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    line_hz: float,
+    *,
+    search_fraction: float = 0.05,
+    window_s: float | None = None,
+) -> FloatArray:
+    """Cycles of a drifting spectral line at every sample: its tracked frequency, integrated.
+
+    The line is located in Hann-windowed frames (half-overlapping; ``window_s`` defaults to
+    1/8 of the record, at least 60 cycles of the line), by the largest bin within ±``search_fraction`` of ``line_hz`` refined by a parabola through the
+    log-amplitudes; a polynomial in time (degree up to 5, fewer for few frames) is fitted to those
+    frequencies and integrated from 0. Smooth: it carries the drift and slow speed changes; what is
+    faster is left to the caller's narrow band.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fs = 8000.0
+    >>> t = np.arange(int(4 * fs)) / fs
+    >>> cycles = 500.0 * t + 0.5 * 20.0 * t**2          # 500 Hz drifting to 580 Hz
+    >>> x = np.cos(2 * np.pi * cycles)
+    >>> c = mesh_ridge_cycles(x, fs, 540.0, search_fraction=0.15)
+    >>> bool(np.max(np.abs(np.diff(c - cycles))) < 1e-4)       # same frequency at every sample
+    True
+    """
+    x = _checked_signal(signal, sample_rate_hz)
+    duration_s = x.size / sample_rate_hz
+    if window_s is None:
+        window_s = max(duration_s / 8.0, 60.0 / line_hz)
+    frame = min(x.size, max(64, int(window_s * sample_rate_hz)))
+    hop = max(1, frame // 2)
+    starts = np.arange(0, x.size - frame + 1, hop)
+    window = np.hanning(frame)
+    freq = np.fft.rfftfreq(frame, d=1.0 / sample_rate_hz)
+    lo = max(1, int(np.searchsorted(freq, line_hz * (1 - search_fraction))))
+    hi = min(freq.size - 2, int(np.searchsorted(freq, line_hz * (1 + search_fraction))))
+    if hi <= lo:
+        raise TachlessError(f"the line near {line_hz:.6g} Hz cannot be tracked in {window_s:.3g} s frames")
+    centres, peaks = [], []
+    for start in starts:
+        spectrum = np.abs(scipy.fft.rfft(x[start : start + frame] * window))
+        b = lo + int(np.argmax(spectrum[lo : hi + 1]))
+        y0, y1, y2 = np.log(spectrum[b - 1 : b + 2] + 1e-300)
+        denominator = y0 - 2.0 * y1 + y2
+        offset = 0.5 * (y0 - y2) / denominator if denominator < 0 else 0.0
+        peaks.append((b + offset) * freq[1])
+        centres.append((start + frame / 2) / sample_rate_hz)
+    t = np.arange(x.size) / sample_rate_hz
+    if len(peaks) < 3:
+        return np.asarray(float(np.median(peaks)) * t, dtype=np.float64)
+    degree = min(5, len(peaks) // 3)
+    fit = np.polynomial.Polynomial.fit(np.asarray(centres), np.asarray(peaks), degree)
+    return np.asarray(fit.integ()(t) - fit.integ()(0.0), dtype=np.float64)
+
+
+def _analytic_band(
+    x: NDArray[Any], sample_rate_hz: float, centre_hz: float, half_width_hz: float,
+    *, two_sided: bool = False,
+) -> NDArray[np.complex128]:
     """Analytic signal of ``x`` band-passed to ``centre ± half_width`` (one-sided FFT mask,
-    raised-cosine edges over the outer 30 % of each side)."""
+    raised-cosine edges over the outer 30 % of each side). ``two_sided``: keep negative
+    frequencies inside the band too (a complex, heterodyned ``x`` around 0 Hz)."""
     n = x.size
     n_fft = scipy.fft.next_fast_len(n)
     spectrum = scipy.fft.fft(x, n=n_fft)
@@ -645,5 +806,8 @@ def _analytic_band(x: FloatArray, sample_rate_hz: float, centre_hz: float, half_
     flat = 0.7
     taper = np.clip((1.0 - distance) / (1.0 - flat), 0.0, 1.0)
     gain = 0.5 - 0.5 * np.cos(np.pi * taper)
-    gain[freq <= 0] = 0.0
+    if not two_sided:
+        gain[freq <= 0] = 0.0
+    else:
+        gain = gain / 2.0  # the caller's complex baseband: no one-sided doubling
     return np.asarray(scipy.fft.ifft(spectrum * 2.0 * gain)[:n], dtype=np.complex128)

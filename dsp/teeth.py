@@ -49,7 +49,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import find_peaks
+
+from dsp.peaks import local_maxima
 
 
 def _checked_teeth(pinion_teeth: int) -> int:
@@ -300,7 +301,7 @@ def per_tooth_well_onset_depth(
         # Each falling edge goes to the one tooth that holds its peak (the middle of a plateau),
         # not to every sector its shoulders reach. Circular: pad by a revolution on each side.
         padded = np.concatenate((values, values, values))
-        peaks, _ = find_peaks(padded)
+        peaks = local_maxima(padded)
         peaks = peaks[(peaks >= samples) & (peaks < 2 * samples)] - samples
         row[:] = 0.0
         np.maximum.at(row, owner[peaks], values[peaks])
@@ -352,7 +353,49 @@ def per_tooth_well_depth(
     )
     # A sector above the revolution's median is a hump, not a well: depth 0, not negative, so
     # that a healthy tooth's trend sits at 0 whatever the shape of the healthy curve.
-    return np.maximum(np.minimum(sector, onset), 0.0)
+    return np.maximum(tooth_evidence(sector, onset), 0.0)
+
+
+def tooth_evidence(sector_depth: ArrayLike, onset_depth: ArrayLike) -> NDArray[np.float64]:
+    """Unclipped per-tooth MCI evidence: ``min(sector depth, leading-edge drop)``, nepers.
+
+    :func:`per_tooth_well_depth` before its clipping at zero: it varies smoothly with noise on
+    a healthy tooth, which the jackknife standard error of :mod:`dsp.toothscore` needs.
+
+    Examples
+    --------
+    >>> tooth_evidence([0.5, -0.2, 1.0], [0.3, 0.1, 1.4])
+    array([ 0.3, -0.2,  1. ])
+    """
+    evidence: NDArray[np.float64] = np.minimum(
+        np.asarray(sector_depth, dtype=np.float64), np.asarray(onset_depth, dtype=np.float64)
+    )
+    return evidence
+
+
+def per_tooth_evidence(
+    mci_filtered: ArrayLike,
+    pinion_teeth: int,
+    tooth1_pitch_angle_deg: float,
+    *,
+    window_samples: int,
+    axis: int = -1,
+) -> NDArray[np.float64]:
+    """:func:`tooth_evidence` of MCI curve(s): :func:`per_tooth_well_depth` without the clipping.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> curve = np.zeros(80)
+    >>> curve[36:64] = -1.5
+    >>> per_tooth_evidence(curve, 5, 36.0, window_samples=16).round(2)
+    array([0.  , 0.  , 1.12, 0.  , 0.  ])
+    """
+    sector = per_tooth_mci_depth(mci_filtered, pinion_teeth, tooth1_pitch_angle_deg, axis=axis)
+    onset = per_tooth_well_onset_depth(
+        mci_filtered, pinion_teeth, tooth1_pitch_angle_deg, window_samples=window_samples, axis=axis
+    )
+    return tooth_evidence(sector, onset)
 
 
 def per_tooth_difference_stats(

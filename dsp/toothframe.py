@@ -1,0 +1,281 @@
+"""A tooth frame that holds from day to day without a tachometer.
+
+Without a once-per-revolution mark, a synchronous average built on the mesh phase
+(:mod:`dsp.tachless`) starts at an arbitrary tooth: two records of one rig differ by a whole
+number of mesh periods (and, between a tach record and a tach-less one, by a fraction of a mesh
+period too). The tooth-specific content of a real gear — pitch errors, runout, profile
+differences — is the same every day, so it is a *fingerprint*: the shift that lines up the
+fingerprints of two days is the shift between their tooth numberings.
+
+This module
+
+1. puts an average in a *canonical* position: moved by the fraction of a mesh period that
+   brings the first mesh harmonic's maximum to sample 0 (:func:`mesh_phase_position`); two
+   canonical averages of one wheel then differ by whole mesh periods only;
+2. extracts the fingerprint (:func:`tooth_fingerprint`): the canonical average without order 0
+   and the mesh harmonics, sectors with an outlying energy (a spall) damped to the median
+   sector energy so that one damaged tooth cannot dominate the match, unit RMS;
+3. finds the whole-tooth shift between two fingerprints by circular cross-correlation and
+   refuses when it is not clear (:func:`align_fingerprint`): the best correlation must reach
+   :data:`MIN_CORRELATION` and lead the runner-up shift by :data:`MIN_MARGIN`.
+
+Everything here is pure: arrays in, arrays and frozen dataclasses out. Shifts are *delays*:
+``circular_shift(x, d)[n] = x[n − d]`` (fractional ``d`` by the Fourier shift theorem, exact for
+a periodic, band-limited average).
+
+Examples
+--------
+>>> import numpy as np
+>>> rng = np.random.default_rng(0)
+>>> teeth, spm = 17, 32
+>>> n = np.arange(teeth * spm)
+>>> pattern = np.repeat(rng.normal(0, 0.2, teeth), spm)           # per-tooth signature
+>>> day1 = np.cos(2 * np.pi * teeth * n / n.size) + pattern
+>>> day2 = np.roll(day1, 5 * spm) + rng.normal(0, 0.05, n.size)    # 5 teeth later, noisy
+>>> a = align_fingerprint(tooth_fingerprint(day2, teeth), tooth_fingerprint(day1, teeth), teeth)
+>>> a.shift_teeth, a.refusal
+(5, '')
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "MIN_CORRELATION",
+    "MIN_MARGIN",
+    "FrameAlignment",
+    "align_fingerprint",
+    "circular_shift",
+    "mesh_phase_position",
+    "resample_periodic",
+    "tooth_fingerprint",
+]
+
+FloatArray = NDArray[np.float64]
+
+MIN_CORRELATION = 0.30
+"""The best whole-tooth shift must correlate at least this well with the reference."""
+MIN_MARGIN = 0.20
+"""…and lead the second-best shift by at least this much; otherwise the frame is refused."""
+SEARCH_REACH_TEETH = 0.25
+"""Each whole-tooth shift is scored by the best correlation within this fraction of a tooth."""
+OUTLIER_SECTOR_ENERGY_RATIO = 4.0
+"""A tooth sector whose fingerprint energy exceeds this × the median sector energy is scaled
+down to the median (a spall, a glitch): one tooth must not carry the match."""
+
+
+@dataclass(frozen=True)
+class FrameAlignment:
+    """Result of matching a record's fingerprint to a reference fingerprint.
+
+    Attributes
+    ----------
+    shift_teeth : int or None
+        Whole teeth ``k`` such that the record's canonical average, *advanced* by ``k`` mesh
+        periods (``circular_shift(x, −k·spm)``), lines up with the reference; None when refused.
+    correlation : float
+        Correlation coefficient at the best shift (−1…1).
+    runner_up : float
+        Best correlation at any other whole-tooth shift.
+    margin : float
+        ``correlation − runner_up``.
+    refusal : str
+        Empty when the shift is accepted, else the reason.
+    delay_samples : int
+        The record's fingerprint is the reference's delayed by this many samples (the best
+        sample shift, within a quarter tooth of ``shift_teeth`` teeth): the canonical positions of
+        two noisy averages may differ by a fraction of a mesh period, and this absorbs it.
+    """
+
+    shift_teeth: int | None
+    correlation: float
+    runner_up: float
+    margin: float
+    refusal: str = ""
+    delay_samples: int = 0
+
+
+def _checked(average: ArrayLike, teeth: int) -> FloatArray:
+    x = np.asarray(average, dtype=np.float64)
+    if x.ndim != 1:
+        raise ValueError(f"the average must be 1-D, got shape {x.shape}")
+    if int(teeth) != teeth or teeth < 2:
+        raise ValueError(f"teeth must be an integer ≥ 2, got {teeth}")
+    if x.size % teeth or x.size // teeth < 4:
+        raise ValueError(
+            f"the average ({x.size} samples) must hold a whole number (≥ 4) of samples per tooth of {teeth}"
+        )
+    if not np.all(np.isfinite(x)):
+        raise ValueError("the average contains NaN or inf")
+    return x
+
+
+def circular_shift(x: ArrayLike, delay_samples: float) -> FloatArray:
+    """``y[n] = x[n − delay]`` on a periodic signal; a fractional delay by a Fourier phase ramp.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> circular_shift(np.array([1.0, 2.0, 3.0, 4.0]), 1).round(12).tolist()
+    [4.0, 1.0, 2.0, 3.0]
+    """
+    values = np.asarray(x, dtype=np.float64)
+    n = values.size
+    if float(delay_samples).is_integer():
+        return np.roll(values, int(delay_samples))
+    spectrum = scipy.fft.rfft(values)
+    orders = np.arange(spectrum.size)
+    spectrum = spectrum * np.exp(-2j * np.pi * orders * float(delay_samples) / n)
+    if n % 2 == 0:
+        # the Nyquist bin of a real signal must stay real: keep its cosine part
+        spectrum[-1] = spectrum[-1].real
+    return np.asarray(scipy.fft.irfft(spectrum, n=n), dtype=np.float64)
+
+
+def resample_periodic(x: ArrayLike, samples: int) -> FloatArray:
+    """A periodic signal on another number of samples per period (Fourier truncation/zero-padding)."""
+    values = np.asarray(x, dtype=np.float64)
+    if values.size == samples:
+        return values.copy()
+    spectrum = scipy.fft.rfft(values)
+    out = np.zeros(samples // 2 + 1, dtype=np.complex128)
+    keep = min(spectrum.size, out.size)
+    out[:keep] = spectrum[:keep]
+    if samples % 2 == 0 and keep == out.size:
+        out[-1] = out[-1].real
+    return np.asarray(scipy.fft.irfft(out, n=samples) * samples / values.size, dtype=np.float64)
+
+
+def mesh_phase_position(average: ArrayLike, teeth: int) -> float:
+    """Where (in samples, ``[0, samples per tooth)``) the first mesh harmonic has its maximum.
+
+    ``circular_shift(average, −position)`` is the *canonical* average: its first mesh harmonic
+    peaks at sample 0, so canonical averages of one wheel differ by whole mesh periods.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> n = np.arange(80)
+    >>> round(mesh_phase_position(np.cos(2 * np.pi * 10 * (n - 3.25) / 80), 10), 6)
+    3.25
+    """
+    x = _checked(average, teeth)
+    coefficient = scipy.fft.rfft(x)[teeth]
+    per_tooth = x.size / teeth
+    return float((-np.angle(coefficient) / (2.0 * np.pi)) % 1.0 * per_tooth)
+
+
+def tooth_fingerprint(average: ArrayLike, teeth: int) -> FloatArray:
+    """The tooth-specific pattern of a synchronous average, canonical, unit RMS.
+
+    The average is moved to its canonical position (:func:`mesh_phase_position`), order 0 and
+    every mesh harmonic are removed (they are the same for every tooth), and each tooth sector
+    whose energy exceeds :data:`OUTLIER_SECTOR_ENERGY_RATIO` × the median sector energy is
+    scaled down to the median: a spall that grows from day to day changes one sector, and must
+    not outweigh the rest of the pattern. A fingerprint with no energy left (a perfectly
+    regular average) is returned as zeros.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fp = tooth_fingerprint(np.cos(2 * np.pi * 8 * np.arange(64) / 64) + np.eye(64)[5], 8)
+    >>> round(float(np.sqrt(np.mean(fp**2))), 6)
+    1.0
+    """
+    x = _checked(average, teeth)
+    canonical = circular_shift(x, -mesh_phase_position(x, teeth))
+    spectrum = scipy.fft.rfft(canonical)
+    spectrum[0] = 0.0
+    spectrum[teeth::teeth] = 0.0
+    pattern = scipy.fft.irfft(spectrum, n=x.size)
+    sectors = pattern.reshape(teeth, -1)
+    energy = np.mean(sectors**2, axis=1)
+    median = float(np.median(energy))
+    if median > 0.0:
+        loud = energy > OUTLIER_SECTOR_ENERGY_RATIO * median
+        sectors[loud] *= np.sqrt(median / energy[loud])[:, None]
+    pattern = sectors.reshape(-1)
+    rms = float(np.sqrt(np.mean(pattern**2)))
+    # rounding residue of a perfectly regular average is no pattern
+    regular = rms <= 1e-9 * float(np.sqrt(np.mean(x**2)))
+    return np.asarray(np.zeros_like(pattern) if regular else pattern / rms, dtype=np.float64)
+
+
+def align_fingerprint(
+    fingerprint: ArrayLike,
+    reference: ArrayLike,
+    teeth: int,
+    *,
+    min_correlation: float = MIN_CORRELATION,
+    min_margin: float = MIN_MARGIN,
+) -> FrameAlignment:
+    """Whole-tooth shift that lines a record's fingerprint up with the reference's.
+
+    Circular cross-correlation over every sample shift; each whole-tooth shift ``k`` scores
+    the best correlation within a quarter tooth of ``k`` teeth (``teeth`` candidates: the
+    canonical positions of noisy averages may disagree by a fraction of a mesh period); the
+    reference is resampled to the record's length when they differ. Refused (with the
+    reason, ``shift_teeth`` None) when the best correlation is below ``min_correlation`` (the
+    pattern is not the reference's: another gear, a re-assembly, too much noise) or leads
+    the runner-up by less than ``min_margin`` (ambiguous: two teeth look alike).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> flat = np.zeros(64)
+    >>> align_fingerprint(flat, flat, 8).refusal
+    'no tooth pattern to align: the record or the reference average is perfectly regular'
+    """
+    fp = _checked(fingerprint, teeth)
+    ref = resample_periodic(_checked(reference, teeth), fp.size)
+    norm = float(np.linalg.norm(fp) * np.linalg.norm(ref))
+    if not norm > 0.0:
+        return FrameAlignment(None, 0.0, 0.0, 0.0,
+                              "no tooth pattern to align: the record or the reference average is perfectly regular")
+    # c[s] = Σ_n fp[n + s]·ref[n]: fp delayed by d peaks at s = d
+    full = scipy.fft.irfft(scipy.fft.rfft(fp) * np.conj(scipy.fft.rfft(ref)), n=fp.size) / norm
+    per_tooth = fp.size // teeth
+    # window k: shifts within a quarter tooth of k teeth (not half: a neighbour's window would
+    # then reach the flank of the true peak and eat the margin)
+    reach = int(SEARCH_REACH_TEETH * per_tooth)
+    windows = np.roll(full, reach).reshape(teeth, per_tooth)[:, : 2 * reach + 1]
+    candidates = windows.max(axis=1)
+    order = np.argsort(candidates)[::-1]
+    best, second = int(order[0]), int(order[1])
+    delay = (best * per_tooth - reach + int(np.argmax(windows[best]))) % fp.size
+    correlation, runner_up = float(candidates[best]), float(candidates[second])
+    margin = correlation - runner_up
+    if correlation < min_correlation:
+        return FrameAlignment(
+            None, correlation, runner_up, margin,
+            f"the tooth pattern does not match the reference: best correlation {correlation:.2f} "
+            f"(shift {best} teeth) < {min_correlation:.2f}",
+        )
+    if margin < min_margin:
+        return FrameAlignment(
+            None, correlation, runner_up, margin,
+            f"ambiguous tooth frame: shifts of {best} and {second} teeth correlate {correlation:.2f} "
+            f"and {runner_up:.2f} (margin {margin:.2f} < {min_margin:.2f})",
+        )
+    return FrameAlignment(best, correlation, runner_up, margin, delay_samples=int(delay))
+
+
+def frame_delay_samples(
+    average: ArrayLike, teeth: int, alignment_delay: float, reference_position: float
+) -> float:
+    """Delay (samples) that brings ``average`` into the reference's frame.
+
+    Canonical (``−mesh_phase_position``), advanced by the alignment's delay
+    (:attr:`FrameAlignment.delay_samples`), then moved to where the reference's own average had
+    its mesh-harmonic maximum (``reference_position``, samples; 0 when the campaign frame is the
+    reference's canonical frame). Wrapped to ``[0, N)``.
+    """
+    x = _checked(average, teeth)
+    delay = -mesh_phase_position(x, teeth) - alignment_delay + reference_position
+    return float(math.fmod(delay, x.size) % x.size)
