@@ -10,14 +10,14 @@ from physics.reconcile.catalogue import (
     UNAVAILABLE,
     Candidate,
 )
-from physics.reconcile.method import (
+from physics.reconcile.method import reconcile
+from physics.reconcile.observables import HuntingSpectrum, hunting_spectrum
+from physics.reconcile.results import (
     Finding,
     MeasuredRecord,
     ReconcileOptions,
     ReconciliationResult,
-    reconcile,
 )
-from physics.reconcile.observables import HuntingSpectrum, hunting_spectrum
 
 __all__ = [
     "CATALOGUE",

@@ -521,7 +521,7 @@ NOT_SCANNED_BY_DEFAULT: dict[str, str] = {
 """Fitted plug-ins left out of the default scan, and why (reported in the JSON)."""
 
 DEFAULT_MECHANISMS: tuple[str, ...] = tuple(n for n in CATALOGUE if n not in NOT_SCANNED_BY_DEFAULT)
-"""What :class:`~physics.reconcile.method.ReconcileOptions` scans unless told otherwise."""
+"""What :class:`~physics.reconcile.results.ReconcileOptions` scans unless told otherwise."""
 
 CONFUSABLE: dict[frozenset[str], str] = {
     frozenset({"gear_eccentricity", "load_fluctuation"}): (

@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,6 +123,8 @@ class ForwardModel:
         self._cache: OrderedDict[str, ComplexArray] = OrderedDict()
         self._cache_size = cache_size
         self.simulations = 0
+        self.on_simulation: Callable[[int], None] | None = None
+        """Called with the simulation count after each simulation (progress reporting)."""
 
     def mode_channels(self, model: GearPairModel) -> ComplexArray:
         """``C_m(k)``, shape ``(n_modes, n_bins)``: each configured mode at unit gain."""
@@ -145,6 +148,8 @@ class ForwardModel:
         seconds = (setup.revs_per_hunt + 1.5) * rev_s
         result = simulate(sim_model, seconds=seconds, seed=None)
         self.simulations += 1
+        if self.on_simulation is not None:
+            self.on_simulation(self.simulations)
         channels = np.stack([result.channels[s.name] for s in sim_model.sensors])
         revs = angle_resample(
             channels,

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dsp.angle import angle_resample
+from gearwatch.floor.defaults import SAMPLES_PER_MESH
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -138,7 +139,7 @@ def hunting_spectrum(
     *,
     pinion_teeth: int,
     gear_teeth: int,
-    samples_per_mesh: int = 64,
+    samples_per_mesh: int = SAMPLES_PER_MESH,
     max_frequency_hz: float | None = None,
     pool_half_width_bins: int = 10,
     max_segments: int | None = None,

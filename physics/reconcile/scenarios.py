@@ -4,7 +4,7 @@
 :class:`Scenario` objects whose ``truth`` model differs from the ``fit_model`` (what the
 user configured) by the hidden physics *and* by secondary model-form error (a finer
 integration step, base parameters perturbed within tolerance). :func:`measured_of` turns a
-scenario into a :class:`~physics.reconcile.method.MeasuredRecord` without files. The key
+scenario into a :class:`~physics.reconcile.results.MeasuredRecord` without files. The key
 (``Scenario.hidden``) is only read by :func:`score`, which grades a result JSON.
 
 Classes
@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from physics.config import GearPairModel, Spall, StructuralMode
-from physics.reconcile.method import MeasuredRecord
+from physics.reconcile.results import MeasuredRecord
 
 CLASSES = ("control", "below_raw_floor", "masked", "occupied", "gear_shaft", "out_of_catalogue")
 
@@ -348,3 +348,150 @@ def score_table(rows: list[dict[str, Any]]) -> str:
             f"{frac('within_bounds_and_90pct')} | {frac('false_finding')} | {frac('flagged_not_explained')} |"
         )
     return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------- independent truth
+
+INDEPENDENT_CLASSES = ("indep_control", "indep_strong_spall", "indep_index_error", "indep_runout",
+                       "indep_friction_loa")
+"""Blinded classes whose truth is :mod:`physics.independent` (another simulator: one DOF with
+per-pair stiffness, partial-face pits under a series contact law, complex-residue modes, a pure
+delay and a cross path) while the fit model is the project's simulator configured as a user
+would from the rig's data sheet. ``indep_strong_spall`` is a strong defect (a 25 µm pit over a
+face fraction of 0.3–0.6: ≥ 40 dB above the averaged floor); ``indep_friction_loa`` a concealed
+friction μ = 0.01–0.03 on a line-of-action sensor (right answer: no mechanism named, friction
+stated as not separable by this sensor)."""
+
+
+@dataclass(frozen=True)
+class IndependentScenario:
+    id: str
+    klass: str
+    truth: Any
+    """The :class:`physics.independent.IndependentModel` (the key's physics)."""
+    fit_model: GearPairModel
+    hidden: list[dict[str, Any]] = field(default_factory=list)
+    seed: int = 0
+
+
+def fit_model_of(truth: Any) -> GearPairModel:
+    """The project simulator's configuration a user would write for an independent rig: its
+    geometry, operating point, tach angle and line-of-action modes (frequency, damping, gain —
+    not the residues' phases, the delay nor the cross path, which a data sheet does not give)."""
+    from physics.config import Geometry, Operating, Sensor, Tachometer
+
+    g = truth.geometry
+    base = default_base()
+    geometry = Geometry(module_mm=g.module_mm, pinion_teeth=g.pinion_teeth, gear_teeth=g.gear_teeth,
+                        pressure_angle_deg=g.pressure_angle_deg, face_width_mm=g.face_width_mm,
+                        addendum_coefficient=g.addendum_coefficient)
+    modes = [StructuralMode(frequency_hz=m.frequency_hz, damping_ratio=m.damping_ratio,
+                            gain_m_s2_per_n=m.gain_m_s2_per_n) for m in truth.path.line_modes]
+    sensor = Sensor(name="acc", noise_rms_m_s2=0.05, modes=modes)
+    return base.replace(
+        geometry=geometry,
+        operating=Operating(speed_rpm=truth.operating.speed_rpm, load_torque_nm=truth.operating.load_torque_nm),
+        sensors=[sensor],
+        tachometer=Tachometer(tooth1_pitch_angle_deg=truth.tachometer.tooth1_pitch_angle_deg),
+    )
+
+
+def draw_independent(klass: str, rng: np.random.Generator, index: int, seconds: float = 5.0) -> IndependentScenario:
+    """One blinded scenario of ``klass`` (:data:`INDEPENDENT_CLASSES`) with an independent truth."""
+    from physics.independent import Acquisition as IAcq
+    from physics.independent import IndependentModel, PairGeometry
+    from physics.independent import Spall as ISpall
+
+    truth = IndependentModel(
+        geometry=PairGeometry(module_mm=10.0),
+        acquisition=IAcq(seconds=seconds, noise_to_signal=float(rng.uniform(0.2, 0.4))),
+    )
+    z1, z2 = truth.geometry.pinion_teeth, truth.geometry.gear_teeth
+    hidden: list[dict[str, Any]] = []
+    errors = truth.errors
+    if klass == "indep_control":
+        pass
+    elif klass == "indep_strong_spall":
+        tooth = int(rng.integers(1, z1 + 1))
+        spall = ISpall(tooth=tooth, depth_um=25.0, face_fraction=float(rng.uniform(0.3, 0.6)),
+                       extent_fraction=float(rng.uniform(0.2, 0.4)), centre_fraction=float(rng.uniform(0.3, 0.6)))
+        truth = dataclasses.replace(truth, spalls=(spall,))
+        hidden.append({"mechanism": "tooth_spall", "wheel": "pinion", "tooth": tooth,
+                       "parameters": {"depth_um": 25.0}})
+    elif klass == "indep_index_error":
+        wheel = "pinion" if index % 2 == 0 else "gear"
+        z = z1 if wheel == "pinion" else z2
+        tooth = int(rng.integers(1, z + 1))
+        err = float(rng.choice([-1, 1]) * rng.uniform(3.0, 6.0))
+        values = [0.0] * z
+        values[tooth - 1] = err
+        changes: dict[str, Any] = {f"{wheel}_index_um": tuple(values)}
+        errors = dataclasses.replace(errors, **changes)
+        truth = dataclasses.replace(truth, errors=errors)
+        hidden.append({"mechanism": "index_error", "wheel": wheel, "tooth": tooth, "parameters": {"error_um": err}})
+    elif klass == "indep_runout":
+        amp, phase = float(rng.uniform(3.0, 8.0)), float(rng.uniform(0, 360))
+        errors = dataclasses.replace(errors, pinion_eccentricity_um=amp, pinion_eccentricity_phase_deg=phase)
+        truth = dataclasses.replace(truth, errors=errors)
+        hidden.append({"mechanism": "pinion_eccentricity", "wheel": "pinion", "tooth": None,
+                       "parameters": {"amplitude_um": amp, "phase_deg": phase}})
+    elif klass == "indep_friction_loa":
+        mu = float(rng.uniform(0.01, 0.03))
+        truth = dataclasses.replace(truth, operating=dataclasses.replace(truth.operating, friction_coefficient=mu))
+        hidden.append({"mechanism": "sliding_friction", "wheel": None, "tooth": None,
+                       "parameters": {"friction_coefficient": mu}, "line_of_action": True})
+    else:
+        raise ValueError(f"unknown independent class {klass!r}; one of {', '.join(INDEPENDENT_CLASSES)}")
+    return IndependentScenario(id=f"{klass}-{index}", klass=klass, truth=truth, fit_model=fit_model_of(truth),
+                               hidden=hidden, seed=int(rng.integers(0, 2**31)))
+
+
+def measured_of_independent(scenario: IndependentScenario) -> MeasuredRecord:
+    """Generate the independent record and read its TTL tach as gearwatch does."""
+    from dsp.tach import pulse_times_from_waveform
+    from physics.independent import generate_record
+
+    rec = generate_record(scenario.truth, seed=scenario.seed)
+    pulses = pulse_times_from_waveform(np.asarray(rec.channels["tach"], dtype=float), rec.sample_rate_hz)
+    return MeasuredRecord(np.asarray(rec.channels["acc"], dtype=float), rec.sample_rate_hz,
+                          np.asarray(pulses, dtype=float), 1)
+
+
+def score_independent(scenario: IndependentScenario, result_json: dict[str, Any]) -> dict[str, Any]:
+    """Grade one result against an independent scenario's key (as :func:`score`), plus: the
+    class's right answer for friction on a line-of-action sensor (nothing named, friction stated
+    not separable), and whether a true parameter lies in the reported 95 % interval."""
+    findings = result_json["findings"]
+    row: dict[str, Any] = {"id": scenario.id, "class": scenario.klass, "status": result_json["status"],
+                           "n_findings": len(findings), "chi2_dof": result_json["final"]["chi2_dof"],
+                           "findings": [f"{f['mechanism']} {f.get('wheel') or ''} {f.get('tooth') or ''}".strip()
+                                        for f in findings],
+                           "defects": [d["message"] for d in result_json.get("model_form", {}).get("defects", [])]}
+    if scenario.klass == "indep_control":
+        row["false_finding"] = bool(findings)
+        return row
+    if scenario.klass == "indep_friction_loa":
+        stated = "sliding_friction" in result_json.get("model_form", {}).get("not_separable_here", {})
+        row["friction_stated_not_separable"] = stated
+        row["false_finding"] = bool(findings)
+        row["right_answer"] = stated and not findings
+        return row
+    h = scenario.hidden[0]
+    if not findings:
+        row.update(right_mechanism_and_place_first=False, right_place_first=False, absent_mechanism_named=False)
+        return row
+    first = findings[0]
+    place = (h["wheel"] is None or first["wheel"] == h["wheel"]) and (
+        h["tooth"] is None or first["tooth"] == h["tooth"])
+    right = first["mechanism"] == h["mechanism"] and place
+    row["right_mechanism_and_place_first"] = right
+    row["right_place_first"] = place
+    row["absent_mechanism_named"] = any(f["mechanism"] != h["mechanism"] for f in findings)
+    key = MAIN_PARAMETER.get(h["mechanism"])
+    if right and key and key in first["parameters"]:
+        true = float(h["parameters"][key])
+        row["parameter_error"] = abs(float(first["parameters"][key]) - true) / max(abs(true), 1e-12)
+        ci = first.get("ci95", {}).get(key)
+        if ci:
+            row["covered"] = bool(ci[0] <= true <= ci[1])
+    return row
