@@ -3,13 +3,13 @@
 The format is documented in the README. Parsing is strict: an unknown key, a
 missing required key, a value of the wrong type, a tachometer channel not declared in
 ``[[channels]]`` or a record file that does not exist raises
-:class:`gearwatch.errors.ManifestError` whose message names the manifest file and the
+:class:`gearwatch.floor.errors.ManifestError` whose message names the manifest file and the
 key (``[rig] pinion_teeth``, ``[[records]][2] file``) or the missing file.
 
 ``[tachometer]`` may be omitted (a rig without a tach, such as the SpectraQuest data):
-the records are still read, but per-revolution processing is impossible, so the
-pipeline rejects each record with a clear reason (:func:`require_tachometer`) rather
-than guessing the speed.
+the pipeline then takes the shaft angle from the mesh phase when ``[rig]`` gives the tooth
+counts (``nominal_pinion_rpm`` is an optional speed hint), and otherwise keeps the
+whole-record raw metrics only (:mod:`gearwatch.usecases.tachless`).
 
 Example
 -------
@@ -43,8 +43,7 @@ from typing import Any, NoReturn, cast, get_args
 
 import tomli_w
 
-from gearwatch.errors import ManifestError, RecordRejected
-from ingest.types import (
+from gearwatch.floor.campaign import (
     Campaign,
     ChannelConfig,
     ChannelKind,
@@ -54,16 +53,39 @@ from ingest.types import (
     TachKind,
     TachometerConfig,
 )
+from gearwatch.floor.errors import ManifestError, RecordRejected
 
 __all__ = ["dump_manifest", "load_manifest", "parse_manifest", "require_tachometer"]
 
 _TOP_LEVEL_KEYS = ("campaign", "rig", "acquisition", "tachometer", "channels", "records")
 _CAMPAIGN_KEYS = ("id", "description")
-_RIG_KEYS = ("id", "pinion_teeth", "gear_teeth", "tooth1_pitch_angle_deg")
+_RIG_KEYS = ("id", "pinion_teeth", "gear_teeth", "tooth1_pitch_angle_deg", "nominal_pinion_rpm")
 _ACQUISITION_KEYS = ("sample_rate_hz",)
 _TACHOMETER_KEYS = ("channel", "kind", "shaft", "pulses_per_rev")
 _CHANNEL_KEYS = ("name", "kind", "unit")
 _RECORD_KEYS = ("file", "taken_at", "label")
+
+# Bounds: what a real rig can have, and what the chain and the database can hold. A manifest
+# outside them is refused naming the key (pinion_teeth = 100000 would hang the averaging,
+# 1 or 2 teeth leave no order between mesh sidebands, a 5000-character file name fails the
+# file system or the database column).
+INTEGER_BOUNDS: dict[str, tuple[int, int]] = {
+    "pinion_teeth": (3, 500),
+    "gear_teeth": (3, 500),
+    "pulses_per_rev": (1, 10_000),
+}
+NUMBER_BOUNDS: dict[str, tuple[float, float]] = {
+    "sample_rate_hz": (1.0, 10_000_000.0),
+    "nominal_pinion_rpm": (0.1, 1_000_000.0),
+}
+MAX_TEXT_LENGTH: dict[str, int] = {
+    "id": 200, "description": 10_000, "name": 200, "unit": 32, "channel": 200,
+    "file": 500, "label": 200, "kind": 32, "shaft": 32,
+}
+MAX_FILE_NAME_COMPONENT = 255
+"""The longest file or folder name common file systems allow."""
+MAX_CHANNELS = 64
+MAX_RECORDS = 100_000
 
 
 class _Context:
@@ -158,6 +180,8 @@ def dump_manifest(campaign: Campaign) -> str:
     if campaign.rig.gear_teeth is not None:
         rig["gear_teeth"] = campaign.rig.gear_teeth
     rig["tooth1_pitch_angle_deg"] = float(campaign.rig.tooth1_pitch_angle_deg)
+    if campaign.rig.nominal_pinion_rpm is not None:
+        rig["nominal_pinion_rpm"] = _toml_number(campaign.rig.nominal_pinion_rpm)
     document["rig"] = rig
     if campaign.sample_rate_hz is not None:
         document["acquisition"] = {"sample_rate_hz": _toml_number(campaign.sample_rate_hz)}
@@ -218,6 +242,7 @@ def _parse_rig(ctx: _Context, table: Mapping[str, Any]) -> RigConfig:
         pinion_teeth=pinion_teeth,
         gear_teeth=gear_teeth,
         tooth1_pitch_angle_deg=float(angle),
+        nominal_pinion_rpm=_positive_number(ctx, "[rig]", table, "nominal_pinion_rpm"),
     )
 
 
@@ -226,6 +251,8 @@ def _parse_channels(ctx: _Context, value: Any) -> tuple[ChannelConfig, ...]:
         ctx.fail("[[channels]]", "missing: declare at least one accelerometer channel")
     if not isinstance(value, list):
         ctx.fail("channels", f"must be an array of tables [[channels]], got {_type_name(value)}")
+    if len(value) > MAX_CHANNELS:
+        ctx.fail("[[channels]]", f"{len(value)} channels, at most {MAX_CHANNELS} allowed")
     channels: list[ChannelConfig] = []
     seen: set[str] = set()
     for index, item in enumerate(value, start=1):
@@ -292,6 +319,8 @@ def _parse_records(
         return ()
     if not isinstance(value, list):
         ctx.fail("records", f"must be an array of tables [[records]], got {_type_name(value)}")
+    if len(value) > MAX_RECORDS:
+        ctx.fail("[[records]]", f"{len(value)} records, at most {MAX_RECORDS} allowed")
     records: list[RecordEntry] = []
     seen: set[str] = set()
     for index, item in enumerate(value, start=1):
@@ -300,6 +329,9 @@ def _parse_records(
             ctx.fail(where, f"must be a table, got {_type_name(item)}")
         _reject_unknown(ctx, where, item, _RECORD_KEYS)
         file = cast(str, _string(ctx, where, item, "file", required=True, nonempty=True))
+        if any(len(part) > MAX_FILE_NAME_COMPONENT for part in Path(file).parts):
+            ctx.fail(f"{where} file", f"a name in the path is longer than "
+                     f"{MAX_FILE_NAME_COMPONENT} characters")
         if file in seen:
             ctx.fail(f"{where} file", f"{file!r} is listed twice")
         seen.add(file)
@@ -358,6 +390,11 @@ def _string(
         ctx.fail(f"{where} {key}", f"must be a string, got {_type_name(value)} {value!r}")
     if nonempty and not value.strip():
         ctx.fail(f"{where} {key}", "must not be empty")
+    longest = MAX_TEXT_LENGTH.get(key)
+    if longest is not None and len(value) > longest:
+        ctx.fail(f"{where} {key}", f"is {len(value)} characters long, at most {longest} allowed")
+    if "\x00" in value:
+        ctx.fail(f"{where} {key}", "must not contain a NUL character")
     return value
 
 
@@ -385,6 +422,9 @@ def _positive_int(ctx: _Context, where: str, table: Mapping[str, Any], key: str)
         ctx.fail(f"{where} {key}", f"must be an integer, got {_type_name(value)} {value!r}")
     if value <= 0:
         ctx.fail(f"{where} {key}", f"must be positive, got {value}")
+    low, high = INTEGER_BOUNDS.get(key, (1, 2**31 - 1))
+    if not low <= value <= high:
+        ctx.fail(f"{where} {key}", f"must be between {low} and {high}, got {value}")
     return value
 
 
@@ -398,6 +438,9 @@ def _positive_number(
         ctx.fail(f"{where} {key}", f"must be a number, got {_type_name(value)} {value!r}")
     if not (math.isfinite(value) and value > 0):
         ctx.fail(f"{where} {key}", f"must be a positive finite number, got {value!r}")
+    low, high = NUMBER_BOUNDS.get(key, (0.0, math.inf))
+    if not low <= value <= high:
+        ctx.fail(f"{where} {key}", f"must be between {low:g} and {high:g}, got {value!r}")
     return float(value)
 
 

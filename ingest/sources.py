@@ -8,7 +8,7 @@ in :mod:`ingest.can`; both packages are imported the first time a reader is look
 
 :func:`read_record` is the one entry point the pipeline uses: it picks the reader by
 the longest matching suffix, turns any library failure into
-:class:`gearwatch.errors.RecordFormatError` naming the file, and checks that the
+:class:`gearwatch.floor.errors.RecordFormatError` naming the file, and checks that the
 reader returned exactly the channels the manifest declares.
 
 Example
@@ -29,8 +29,8 @@ from typing import Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
-from gearwatch.errors import GearwatchError, RecordFormatError
-from ingest.types import Campaign, RecordData
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import GearwatchError, RecordFormatError
 
 __all__ = [
     "RecordReader",
@@ -51,7 +51,7 @@ class RecordReader(Protocol):
     tachometer), each a 1-D floating-point array (float32 or float64, possibly a
     read-only memory-mapped view of the file); a ``pulse_times`` tachometer is the
     array of pulse times in seconds, of its own length. It raises
-    :class:`gearwatch.errors.RecordFormatError` naming the file (and channel).
+    :class:`gearwatch.floor.errors.RecordFormatError` naming the file (and channel).
     """
 
     suffixes: tuple[str, ...]
@@ -65,8 +65,24 @@ _registry: dict[str, RecordReader] = {}
 _builtins_loaded = False
 _builtins_lock = threading.Lock()
 
-# Packages whose import registers readers; a missing optional package is skipped.
+# Packages whose modules register readers; a missing optional package is skipped.
 _READER_PACKAGES = ("ingest.readers", "ingest.can")
+
+_BUILTIN_READER_MODULES: dict[str, str] = {
+    ".wav": "ingest.readers.wav",
+    ".csv": "ingest.readers.csv",
+    ".csv.gz": "ingest.readers.csv",
+    ".npz": "ingest.readers.npz",
+    ".h5": "ingest.readers.hdf5",
+    ".hdf5": "ingest.readers.hdf5",
+    ".hdf": "ingest.readers.hdf5",
+    ".tdms": "ingest.readers.tdms",
+    ".mat": "ingest.readers.mat",
+}
+"""Which built-in module registers a suffix, so that reading one file imports only its reader's
+library (h5py, nptdms, scipy.io.matlab and python-can are a large part of a short command's
+start-up). ``tests/ingest/test_readers_registry.py`` checks it against the readers' own
+``suffixes``; a suffix not listed (CAN logs, plug-ins) loads every built-in reader."""
 
 
 def register_reader(reader: ReaderT) -> ReaderT:
@@ -115,12 +131,27 @@ def _load_builtin_readers() -> None:
             return
         for package in _READER_PACKAGES:
             try:
-                importlib.import_module(package)
+                module = importlib.import_module(package)
             except ModuleNotFoundError as error:
                 # Only the package itself may be absent; a broken import inside it is a bug.
                 if error.name != package:
                     raise
+                continue
+            for folder in getattr(module, "__path__", ()):
+                for entry in sorted(Path(folder).glob("[!_]*.py")):
+                    importlib.import_module(f"{package}.{entry.stem}")
         _builtins_loaded = True
+
+
+def _load_reader_for(name: str) -> None:
+    """Import the built-in reader of a lower-case file ``name`` (every one when unsure)."""
+    if _builtins_loaded:
+        return
+    modules = {module for suffix, module in _BUILTIN_READER_MODULES.items() if name.endswith(suffix)}
+    if not modules:
+        _load_builtin_readers()
+    for module in sorted(modules):
+        importlib.import_module(module)
 
 
 def registered_suffixes() -> tuple[str, ...]:
@@ -134,8 +165,8 @@ def reader_for(path: str | Path) -> RecordReader:
 
     Raises :class:`RecordFormatError` when no reader handles the file's suffix.
     """
-    _load_builtin_readers()
     name = Path(path).name.lower()
+    _load_reader_for(name)
     matches = [suffix for suffix in _registry if name.endswith(suffix)]
     if not matches:
         known = ", ".join(sorted(_registry)) or "none"

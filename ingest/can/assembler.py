@@ -23,8 +23,8 @@ from typing import Any, Literal
 import can
 import numpy as np
 
+from gearwatch.floor.campaign import RecordData
 from ingest.can import protocol as p
-from ingest.types import RecordData
 
 Status = Literal["accepted", "rejected"]
 MAX_LISTED_RANGES = 8
@@ -90,12 +90,24 @@ class _OpenRecord:
 def _ranges(numbers: np.ndarray) -> str:
     """``[3, 4, 5, 9]`` → ``"3-5, 9"`` (at most MAX_LISTED_RANGES ranges)."""
     numbers = np.unique(numbers)
+    if numbers.size == 0:
+        return "none"
     breaks = np.flatnonzero(np.diff(numbers) != 1) + 1
     parts = []
     for run in np.split(numbers, breaks)[:MAX_LISTED_RANGES]:
         parts.append(f"{run[0]}" if run.size == 1 else f"{run[0]}-{run[-1]}")
     more = len(breaks) + 1 - MAX_LISTED_RANGES
     return ", ".join(parts) + (f" and {more} more range(s)" if more > 0 else "")
+
+
+def _start_time_text(start_time_us: int) -> str:
+    """ISO 8601 of the RecordStart time, or ``"invalid (<µs>)"`` for a time past year 9999 (a
+    corrupt frame must reject its record with a reason, not stop the receiver)."""
+    try:
+        start = dt.datetime.fromtimestamp(start_time_us / 1e6, tz=dt.UTC)
+    except (ValueError, OverflowError, OSError):
+        return f"invalid ({start_time_us} µs)"
+    return start.isoformat(timespec="microseconds")
 
 
 def _unwrap_sequence(sequence: np.ndarray) -> np.ndarray:
@@ -367,10 +379,9 @@ class RecordAssembler:
 
     def _base_metadata(self, record: _OpenRecord) -> dict[str, str]:
         header = record.header
-        start = dt.datetime.fromtimestamp(header.start_time_us / 1e6, tz=dt.UTC)
         return {
             "can_record_id": str(header.record_id),
-            "can_start_time": start.isoformat(timespec="microseconds"),
+            "can_start_time": _start_time_text(header.start_time_us),
             "can_frames": str(record.frame_count),
         }
 
@@ -436,6 +447,8 @@ class RecordAssembler:
             )
             kinds[info.name] = info.kind
         metadata.update(self._base_metadata(record))
+        if metadata["can_start_time"].startswith("invalid"):
+            raise _RecordRejected(f"RecordStart StartTime {header.start_time_us} µs is not a time")
         metadata["can_channel_kinds"] = json.dumps(kinds, sort_keys=True)
         metadata["can_pulses_per_rev"] = str(header.pulses_per_rev)
         metadata["can_tach_shaft"] = header.tach_shaft
@@ -494,6 +507,11 @@ class RecordAssembler:
                 np.any(counts[:-1] != p.SAMPLES_PER_BLOCK) or not 1 <= counts[-1] <= p.SAMPLES_PER_BLOCK
             ):
                 bad = np.flatnonzero(counts[:-1] != p.SAMPLES_PER_BLOCK)
+                if bad.size == 0:  # only the last block is wrong
+                    raise _RecordRejected(
+                        f"{what}: the last block holds {int(counts[-1])} samples, expected "
+                        f"1 to {p.SAMPLES_PER_BLOCK}"
+                    )
                 raise _RecordRejected(
                     f"{what}: short block inside the record at sequence "
                     f"{_ranges(ordered['sequence'][bad])}"

@@ -1,6 +1,6 @@
 """Rig emulator: play records onto a CAN FD bus with the rig's protocol.
 
-:func:`record_frames` turns a :class:`~ingest.types.RecordData` into the frame sequence a
+:func:`record_frames` turns a :class:`~gearwatch.floor.campaign.RecordData` into the frame sequence a
 rig would send, each frame stamped with the time (after the record's first sample) at
 which the rig has its data: a ``SampleBlock`` when its 30th sample is acquired, a
 ``TachEdges`` frame at its last edge. :func:`emulate` sends those frames on a python-can
@@ -27,8 +27,8 @@ from pathlib import Path
 import can
 import numpy as np
 
+from gearwatch.floor.campaign import Campaign, RecordData
 from ingest.can import protocol as p
-from ingest.types import Campaign, RecordData
 
 TACH_FRAME_MAX_SPAN_S = 0.05
 """A rig flushes its tach edges at least every 50 ms, so a TachEdges frame spans at most this."""

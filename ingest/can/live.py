@@ -21,10 +21,10 @@ def open_bus(interface: str, channel: str, **options: Any) -> can.BusABC:
 
     On ``udp_multicast`` the socket's receive buffer is enlarged: UDP drops datagrams when
     the receiver falls behind, and a larger buffer absorbs the bursts of a fast sender (the
-    assembler still detects any loss). Raises :class:`gearwatch.errors.InputError` when
+    assembler still detects any loss). Raises :class:`gearwatch.floor.errors.InputError` when
     python-can cannot open the bus.
     """
-    from gearwatch.errors import InputError
+    from gearwatch.floor.errors import InputError
 
     try:
         bus = can.Bus(interface=interface, channel=channel, fd=True, **options)

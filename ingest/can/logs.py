@@ -15,11 +15,11 @@ from pathlib import Path
 
 import can
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError
 from ingest.can.assembler import AssembledRecord, RecordAssembler
 from ingest.readers._common import channel_not_found, is_pulse_times
 from ingest.sources import declared_channel_names, register_reader
-from ingest.types import Campaign, RecordData
 
 LOG_SUFFIXES = (".blf", ".asc", ".log")
 

@@ -1,4 +1,4 @@
-"""Built-in record-file readers, one module per format; importing this package registers them.
+"""Built-in record-file readers, one module per format; importing a module registers its reader.
 
 ========  =====================  =====================================================
 Module    Suffixes               Channel names / sample rate
@@ -10,13 +10,7 @@ hdf5      .h5, .hdf5, .hdf       dataset names / root attribute ``sample_rate_hz
 tdms      .tdms                  channel names in any group / ``wf_increment``
 mat       .mat                   variable names (v5 and v7.3) / ``fs``, ``sample_rate_hz``
 ========  =====================  =====================================================
+
+:mod:`ingest.sources` imports them: only the one a file's suffix names when that is enough
+(reading a WAV file does not import h5py, nptdms or scipy.io.matlab), every one otherwise.
 """
-
-from __future__ import annotations
-
-import importlib
-import pkgutil
-
-for _module in pkgutil.iter_modules(__path__):
-    if not _module.name.startswith("_"):
-        importlib.import_module(f"{__name__}.{_module.name}")

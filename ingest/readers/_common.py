@@ -3,19 +3,23 @@
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from gearwatch.errors import RecordFormatError
-from ingest.types import Campaign
+from gearwatch.floor.campaign import Campaign
+from gearwatch.floor.errors import RecordFormatError
 
 __all__ = [
+    "MAX_EXPANSION",
     "as_channel",
     "channel_not_found",
+    "check_declared_size",
     "is_pulse_times",
+    "max_channel_bytes",
     "resolve_sample_rate",
 ]
 
@@ -79,3 +83,47 @@ def as_channel(path: Path, name: str, samples: Any) -> np.ndarray:
     raise RecordFormatError(
         f"{path}: channel {name!r} has non-numeric dtype {array.dtype}, expected numbers"
     )
+
+
+DEFAULT_MAX_CHANNEL_BYTES = 1 << 30
+"""Ceiling on the size a file may declare for one channel (1 GiB: 134 M float64 samples, 22 min
+at 100 kHz); ``GEARWATCH_MAX_CHANNEL_BYTES`` changes it."""
+MAX_EXPANSION = 1100
+"""Largest ratio of declared to stored bytes for compressed data: deflate cannot exceed about
+1032:1, so a larger ratio is not compression but data that is not in the file (never-written
+chunks, a forged size). Uncompressed data must be stored whole (ratio 1)."""
+SMALL_BYTES = 1 << 20
+"""Below this a declared size is never refused on its ratio (headers, scalars, tiny records)."""
+
+
+def max_channel_bytes() -> int:
+    """The ceiling for one channel's declared size, from ``GEARWATCH_MAX_CHANNEL_BYTES``."""
+    text = os.environ.get("GEARWATCH_MAX_CHANNEL_BYTES", "")
+    try:
+        return int(text) if text.strip() else DEFAULT_MAX_CHANNEL_BYTES
+    except ValueError:
+        return DEFAULT_MAX_CHANNEL_BYTES
+
+
+def check_declared_size(
+    path: Path, name: str, declared_bytes: int, stored_bytes: int | None, *,
+    compressed: bool,
+) -> None:
+    """Refuse a channel BEFORE allocating it when the file declares more bytes than the
+    ceiling, or more than its stored bytes can hold (see :data:`MAX_EXPANSION`).
+
+    ``stored_bytes`` is what the file really holds for the channel (``None``: unknown)."""
+    ceiling = max_channel_bytes()
+    if declared_bytes > ceiling:
+        raise RecordFormatError(
+            f"{path}: channel {name!r} declares {declared_bytes} bytes, more than the ceiling "
+            f"of {ceiling} bytes (GEARWATCH_MAX_CHANNEL_BYTES)"
+        )
+    if stored_bytes is None or declared_bytes <= SMALL_BYTES:
+        return
+    expansion = MAX_EXPANSION if compressed else 1
+    if declared_bytes > expansion * stored_bytes:
+        raise RecordFormatError(
+            f"{path}: channel {name!r} declares {declared_bytes} bytes but the file stores "
+            f"{stored_bytes} bytes of it: data never written, truncated or forged"
+        )

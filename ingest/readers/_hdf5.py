@@ -8,8 +8,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from gearwatch.errors import RecordFormatError
-from ingest.readers._common import channel_not_found
+from gearwatch.floor.errors import RecordFormatError
+from ingest.readers._common import channel_not_found, check_declared_size
 
 
 def open_hdf5(path: Path, what: str) -> h5py.File:
@@ -49,6 +49,11 @@ def read_dataset(path: Path, dataset: h5py.Dataset) -> np.ndarray:
     mapped = _map_contiguous(path, dataset)
     if mapped is not None:
         return mapped
+    declared = int(dataset.size or 0) * dataset.dtype.itemsize
+    # The bytes the file really holds for it (chunks never written take none).
+    stored = int(dataset.id.get_storage_size())
+    compressed = dataset.compression is not None or bool(getattr(dataset, "_filters", None))
+    check_declared_size(path, dataset.name or "?", declared, stored, compressed=compressed)
     try:
         values: np.ndarray = dataset[()]
     except (OSError, ValueError, TypeError) as error:
@@ -71,6 +76,7 @@ def _map_contiguous(path: Path, dataset: h5py.Dataset) -> np.ndarray | None:
     if offset is None:  # space not allocated (never written)
         return None
     byte_count = int(dataset.size) * dtype.itemsize
+    check_declared_size(path, dataset.name or "?", byte_count, None, compressed=False)
     if offset + byte_count > path.stat().st_size:
         raise RecordFormatError(f"{path}: dataset {dataset.name!r} runs past the end of the file (truncated)")
     mapped = np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=dataset.shape)

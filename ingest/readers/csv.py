@@ -20,20 +20,29 @@ from typing import IO, Any, BinaryIO, cast
 
 import numpy as np
 
-from gearwatch.errors import RecordFormatError
-from ingest.readers._common import channel_not_found, is_pulse_times, resolve_sample_rate
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError
+from ingest.readers._common import (
+    channel_not_found,
+    is_pulse_times,
+    max_channel_bytes,
+    resolve_sample_rate,
+)
 from ingest.sources import declared_channel_names, register_reader
-from ingest.types import Campaign, RecordData
 
 _DELIMITERS = (",", ";", "\t")
 
 
 class _TailTrackingRaw(io.RawIOBase):
-    """Binary stream proxy remembering the last byte read (to detect a missing final newline)."""
+    """Binary stream proxy remembering the last byte read (to detect a missing final newline)
+    and refusing more than ``limit`` bytes of text (a gzip bomb decompresses without end)."""
 
-    def __init__(self, inner: BinaryIO) -> None:
+    def __init__(self, inner: BinaryIO, path: Path, limit: int) -> None:
         self._inner = inner
         self.last_byte = b""
+        self.path = path
+        self.limit = limit
+        self.total = 0
 
     def readable(self) -> bool:
         return True
@@ -41,6 +50,12 @@ class _TailTrackingRaw(io.RawIOBase):
     def readinto(self, buffer: Any) -> int:
         data = self._inner.read(len(buffer))
         count = len(data)
+        self.total += count
+        if self.total > self.limit:
+            raise RecordFormatError(
+                f"{self.path}: more than {self.limit} bytes of CSV text, the ceiling for one "
+                "record (GEARWATCH_MAX_CHANNEL_BYTES)"
+            )
         buffer[:count] = data
         if count:
             self.last_byte = data[-1:]
@@ -67,7 +82,7 @@ class CsvReader:
         compressed = path.name.lower().endswith(".gz")
         try:
             binary = cast(BinaryIO, gzip.open(path, "rb") if compressed else open(path, "rb"))
-            tail = _TailTrackingRaw(binary)
+            tail = _TailTrackingRaw(binary, path, max_channel_bytes())
             with io.TextIOWrapper(io.BufferedReader(tail), encoding="utf-8-sig") as stream:
                 header, delimiter = _read_header(path, stream)
                 columns = {}

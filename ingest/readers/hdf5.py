@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from gearwatch.floor.campaign import Campaign, RecordData
 from ingest.readers._common import as_channel, resolve_sample_rate
 from ingest.readers._hdf5 import find_dataset, open_hdf5, read_dataset
 from ingest.sources import declared_channel_names, register_reader
-from ingest.types import Campaign, RecordData
 
 RATE_ATTRIBUTE = "sample_rate_hz"
 

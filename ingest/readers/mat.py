@@ -20,15 +20,24 @@ import numpy as np
 import scipy.io
 from scipy.io.matlab import MatReadError
 
-from gearwatch.errors import RecordFormatError
-from ingest.readers._common import as_channel, channel_not_found, resolve_sample_rate
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError
+from ingest.readers._common import (
+    as_channel,
+    channel_not_found,
+    check_declared_size,
+    resolve_sample_rate,
+)
 from ingest.readers._hdf5 import find_dataset, open_hdf5, read_dataset
 from ingest.sources import declared_channel_names, register_reader
-from ingest.types import Campaign, RecordData
 
 RATE_VARIABLES = ("fs", "sample_rate_hz")
 _MAT5_HEADER_BYTES = 128
 _MI_COMPRESSED = 15
+_MATLAB_CLASS_BYTES = {
+    "double": 8, "single": 4, "int8": 1, "uint8": 1, "int16": 2, "uint16": 2, "int32": 4,
+    "uint32": 4, "int64": 8, "uint64": 8, "logical": 1, "char": 2,
+}
 _MATLAB_NUMERIC_CLASSES = {
     "double", "single", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64",
 }
@@ -58,10 +67,12 @@ class MatReader:
 
 
 def _read_v5(path: Path, names: tuple[str, ...]) -> tuple[dict[str, Any], str | None, Any]:
-    _check_v5_complete(path)
+    elements = _check_v5_complete(path)
     try:
-        available = {name for name, _shape, _cls in scipy.io.whosmat(path)}
+        listed = scipy.io.whosmat(path)
+        available = {name for name, _shape, _cls in listed}
         wanted = [n for n in (*names, *RATE_VARIABLES) if n in available]
+        _check_v5_declared_sizes(path, listed, elements, set(wanted))
         loaded = scipy.io.loadmat(path, variable_names=wanted, squeeze_me=False, mat_dtype=False)
     except (MatReadError, ValueError, OSError, EOFError, TypeError, NotImplementedError) as error:
         raise RecordFormatError(f"{path}: not a readable MAT file (truncated or corrupt): {error}") from None
@@ -82,8 +93,31 @@ def _numeric_v5(path: Path, name: str, value: Any) -> np.ndarray:
     return value
 
 
-def _check_v5_complete(path: Path) -> None:
-    """Walk the top-level data elements of a v5 file; refuse one that runs past the end."""
+def _check_v5_declared_sizes(
+    path: Path,
+    listed: list[tuple[str, tuple[int, ...], str]],
+    elements: list[tuple[int, bool]] | None,
+    wanted: set[str],
+) -> None:
+    """Refuse a wanted variable whose declared size passes the ceiling or what its element
+    stores (a compressed element expands at most :data:`MAX_EXPANSION` times), before
+    ``loadmat`` decompresses it. Top-level elements and ``whosmat`` entries are in file order."""
+    for index, (name, shape, matlab_class) in enumerate(listed):
+        if name not in wanted:
+            continue
+        declared = int(np.prod(shape, dtype=np.int64)) * _MATLAB_CLASS_BYTES.get(matlab_class, 8)
+        stored, compressed = (
+            elements[index] if elements is not None and index < len(elements) else (None, False)
+        )
+        check_declared_size(path, name, declared, stored, compressed=compressed)
+
+
+def _check_v5_complete(path: Path) -> list[tuple[int, bool]] | None:
+    """Walk the top-level data elements of a v5 file; refuse one that runs past the end.
+
+    Returns each variable element's (stored bytes, compressed), in file order (``None`` for
+    a file without a v5 header)."""
+    elements: list[tuple[int, bool]] = []
     file_bytes = path.stat().st_size
     with open(path, "rb") as stream:
         header = stream.read(_MAT5_HEADER_BYTES)
@@ -91,7 +125,7 @@ def _check_v5_complete(path: Path) -> None:
             raise RecordFormatError(f"{path}: too short for a MAT file ({file_bytes} bytes)")
         endian = {b"IM": "<", b"MI": ">"}.get(header[126:128])
         if endian is None:
-            return  # not v5 (v4 has no such header): loadmat decides
+            return None  # not v5 (v4 has no such header): loadmat decides
         tag_format = struct.Struct(endian + "II")
         position = _MAT5_HEADER_BYTES
         while position < file_bytes:
@@ -109,7 +143,9 @@ def _check_v5_complete(path: Path) -> None:
                     f"{path}: truncated or corrupt MAT file (an element of {byte_count} bytes "
                     f"at offset {position} runs past the end, {file_bytes} bytes)"
                 )
+            elements.append((byte_count, data_type == _MI_COMPRESSED))
             position = end if data_type == _MI_COMPRESSED else end + (-end % 8)
+    return elements
 
 
 def _read_v73(path: Path, names: tuple[str, ...]) -> tuple[dict[str, Any], str | None, Any]:

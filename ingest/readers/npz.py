@@ -16,10 +16,15 @@ from typing import Any
 
 import numpy as np
 
-from gearwatch.errors import RecordFormatError
-from ingest.readers._common import as_channel, channel_not_found, resolve_sample_rate
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError
+from ingest.readers._common import (
+    as_channel,
+    channel_not_found,
+    check_declared_size,
+    resolve_sample_rate,
+)
 from ingest.sources import declared_channel_names, register_reader
-from ingest.types import Campaign, RecordData
 
 RATE_MEMBERS = ("sample_rate_hz", "fs")
 _LOCAL_HEADER = struct.Struct("<4s22xHH")  # signature ... file name length, extra field length
@@ -65,7 +70,17 @@ def _member_array(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -
         if info.compress_type == zipfile.ZIP_STORED:
             return _map_stored_member(path, info)
         with archive.open(info) as member:
-            return np.lib.format.read_array(member, allow_pickle=False)
+            version = np.lib.format.read_magic(member)
+            shape, fortran_order, dtype = _read_npy_header(member, version)
+            if dtype.hasobject:
+                raise ValueError("object arrays are not allowed")
+            declared = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+            if declared > info.file_size:
+                raise ValueError(f"the header declares {declared} bytes, the member holds "
+                                 f"{info.file_size}")
+            check_declared_size(path, name.removesuffix(".npy"), declared, info.compress_size,
+                                compressed=True)
+            return _read_npy_body(member, shape, fortran_order, dtype)
     except (zipfile.BadZipFile, EOFError, OSError, ValueError) as error:
         raise RecordFormatError(f"{path}: member {name!r} is corrupt or truncated: {error}") from None
 
@@ -88,6 +103,8 @@ def _map_stored_member(path: Path, info: zipfile.ZipInfo) -> np.ndarray:
     if dtype.hasobject:
         raise ValueError("object arrays are not allowed")
     array_bytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+    check_declared_size(path, info.filename.removesuffix(".npy"), array_bytes, None,
+                        compressed=False)
     if array_offset - data_start + array_bytes > info.file_size or data_start + info.file_size > file_bytes:
         raise ValueError("the array data runs past the end of the member or file")
     if array_bytes == 0:
@@ -96,6 +113,22 @@ def _map_stored_member(path: Path, info: zipfile.ZipInfo) -> np.ndarray:
         path, dtype=dtype, mode="r", offset=array_offset, shape=shape,
         order="F" if fortran_order else "C",
     )
+
+
+def _read_npy_body(
+    stream: Any, shape: tuple[int, ...], fortran_order: bool, dtype: np.dtype[Any]
+) -> np.ndarray:
+    """The array after its header, read in bounded blocks (a short member is an error)."""
+    count = int(np.prod(shape, dtype=np.int64))
+    array = np.empty(count, dtype=dtype)
+    raw = array.view(np.uint8)
+    block = 16 << 20
+    for start in range(0, raw.size, block):
+        chunk = _read_exactly(stream, min(block, raw.size - start))
+        raw[start : start + len(chunk)] = np.frombuffer(chunk, dtype=np.uint8)
+    if fortran_order:
+        return array.reshape(shape[::-1]).transpose()
+    return array.reshape(shape)
 
 
 def _read_npy_header(stream: Any, version: tuple[int, int]) -> tuple[tuple[int, ...], bool, np.dtype[Any]]:

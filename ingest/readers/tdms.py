@@ -20,7 +20,9 @@ from typing import Any
 import numpy as np
 from nptdms import TdmsFile
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError
+from gearwatch.floor.logs import adopt_library_loggers
 from ingest.readers._common import (
     as_channel,
     channel_not_found,
@@ -28,7 +30,8 @@ from ingest.readers._common import (
     resolve_sample_rate,
 )
 from ingest.sources import declared_channel_names, register_reader
-from ingest.types import Campaign, RecordData
+
+adopt_library_loggers()  # nptdms attached a printing handler to each of its loggers at import
 
 _TRUNCATION_HINTS = ("less data than expected", "not a multiple of the chunk size", "end of file")
 

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import scipy.io.wavfile
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError
 from ingest.readers._common import as_channel, is_pulse_times
 from ingest.sources import declared_channel_names, register_reader
-from ingest.types import Campaign, RecordData
 
 
 @register_reader
