@@ -16,7 +16,7 @@ import scipy.signal
 import scipy.stats
 
 from dsp import metrics
-from gearwatch.results import AVERAGE_METRIC_NAMES
+from gearwatch.floor.results import AVERAGE_METRIC_NAMES
 
 SPIKE = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 4.0]
 ALTERNATING = [1.0, -1.0, 1.0, -1.0]

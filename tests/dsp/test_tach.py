@@ -206,13 +206,30 @@ def test_speed_variation_refused_and_boundary() -> None:
     speeds = np.linspace(1000.0, 1150.0, 30)  # run-up: (max - min)/mean = 150/1075
     pulses = np.concatenate([[0.0], np.cumsum(60.0 / speeds)])
     variation = 150.0 / np.mean(speeds)
+    assert analyze_tachometer(pulses, 1).speed_variation == pytest.approx(variation)  # default 0.5
     with pytest.raises(TachometerError, match="speed varies too much"):
-        analyze_tachometer(pulses, 1)
+        analyze_tachometer(pulses, 1, max_speed_variation=0.10)
     assert analyze_tachometer(pulses, 1, max_speed_variation=variation + 1e-12).speed_variation == (
         pytest.approx(variation)
     )
     with pytest.raises(TachometerError, match="speed varies"):
         analyze_tachometer(pulses, 1, max_speed_variation=variation - 1e-9)
+    # ±30 % over the record, slowly: (max - min)/mean ≈ 0.6 is refused by the default
+    slow = 1000.0 * (1 + 0.3 * np.sin(np.linspace(0, 2 * np.pi, 400)))
+    with pytest.raises(TachometerError, match="speed varies too much"):
+        analyze_tachometer(np.concatenate([[0.0], np.cumsum(60.0 / slow)]), 1)
+
+
+def test_speed_changing_too_fast_is_refused_with_that_reason() -> None:
+    # a shaft braked to a stop: the period grows by 8 % per revolution, smoothly
+    periods = 0.06 * 1.08 ** np.maximum(np.arange(80) - 40, 0)
+    pulses = np.concatenate([[0.0], np.cumsum(periods)])
+    with pytest.raises(TachometerError, match="speed changes too fast for order tracking"):
+        analyze_tachometer(pulses, 1)
+    # coasting down more gently (4 % per revolution) is trackable, but leaves 1000 → 217 rpm
+    periods = 0.06 * 1.04 ** np.maximum(np.arange(80) - 40, 0)
+    with pytest.raises(TachometerError, match="speed varies too much"):
+        analyze_tachometer(np.concatenate([[0.0], np.cumsum(periods)]), 1)
 
 
 def test_speed_range_refused() -> None:

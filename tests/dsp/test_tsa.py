@@ -150,7 +150,9 @@ def test_difference_signal_of_a_spalled_pinion_keeps_the_spall() -> None:
     assert 0 <= peak_deg - (rec.spall_pitch_angle_deg - 18 / 2) < 18
 
 
-@pytest.mark.parametrize("module", ["dsp.tach", "dsp.angle", "dsp.tsa", "dsp.synthetic"])
+@pytest.mark.parametrize(
+    "module", ["dsp.tach", "dsp.angle", "dsp.tsa", "dsp.synthetic", "dsp.robust", "dsp.quality"]
+)
 def test_docstring_examples_run(module: str) -> None:
     import doctest
     import importlib

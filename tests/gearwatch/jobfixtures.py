@@ -15,10 +15,10 @@ from typing import Any
 import numpy as np
 import scipy.io.wavfile
 
-from gearwatch.errors import RecordRejected
-from gearwatch.results import AnalysisParameters, RecordAnalysis
+from gearwatch.floor.campaign import Campaign, RecordData, RecordEntry
+from gearwatch.floor.errors import RecordRejected
+from gearwatch.floor.results import AnalysisParameters, RecordAnalysis
 from ingest.manifest import dump_manifest, load_manifest
-from ingest.types import Campaign, RecordData, RecordEntry
 from tests.storage.factories import T0, analysis, campaign_config
 
 SAMPLE_RATE_HZ = 2000

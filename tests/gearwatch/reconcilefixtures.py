@@ -72,7 +72,7 @@ def write_campaign(
 
 def ingest(session: Session, manifest: Path, raw_store: Any) -> dict[str, int]:
     """Store every record of the manifest (the job commits); file name → record id."""
-    from gearwatch.jobs import process_file
+    from gearwatch.usecases.ingest_file import process_file
     from ingest.manifest import load_manifest
 
     campaign = load_manifest(manifest)

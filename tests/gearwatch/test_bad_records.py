@@ -17,8 +17,8 @@ from nptdms import ChannelObject, TdmsWriter
 from sqlalchemy.orm import Session
 
 from dsp.synthetic import synthetic_gear_record
-from gearwatch.commands.replay import replay_campaign
-from gearwatch.results import AnalysisParameters
+from gearwatch.floor.results import AnalysisParameters
+from gearwatch.usecases.replay import replay_campaign
 from storage.raw_store import RawStore
 from storage.repositories import CampaignRepository, RecordRepository
 from tests.storage import dbfixtures
@@ -84,7 +84,13 @@ def write_csv_gz(path: Path) -> None:
 
 def with_nan(path: Path) -> None:
     acc, tach = good_signals()
-    acc[5000:5010] = np.nan
+    acc[::10] = np.nan  # 10 % of the samples: more than can be bridged
+    np.savez(path, acc=acc, tach=tach)
+
+
+def with_a_few_nan(path: Path) -> None:
+    acc, tach = good_signals()
+    acc[5000:5010] = np.nan  # one short stretch: bridged, its revolution left out
     np.savez(path, acc=acc, tach=tach)
 
 
@@ -137,11 +143,13 @@ CASES: dict[str, tuple[Callable[[Path], None], str, str]] = {
     "truncated.csv.gz": (truncated(write_csv_gz), "rejected", "truncated.csv.gz"),
     "garbage.wav": (lambda p: p.write_bytes(b"RIFF\x10\x00\x00\x00WAVEfmt garbage"), "rejected",
                     "garbage.wav"),
-    "nan.npz": (with_nan, "rejected", "10 NaN or inf samples"),
+    "nan.npz": (with_nan, "rejected", "10.00% defective samples"),
+    "nan-burst.npz": (with_a_few_nan, "accepted", ""),
     "clipped.wav": (clipped, "rejected", "clipped"),
     "wrong-rate.wav": (wrong_rate, "rejected", "25600 Hz differs from the manifest"),
-    "no-pulses.wav": (no_pulses, "rejected", "tachometer"),
-    "tach-dropout.wav": (tach_dropout, "rejected", "tachometer"),
+    # a dead or broken tach no longer loses the record: angle from the mesh phase (issue 11)
+    "no-pulses.wav": (no_pulses, "accepted", "no tachometer pulses"),
+    "tach-dropout.wav": (tach_dropout, "accepted", "irregular tachometer"),
     "short.wav": (too_few_revolutions, "rejected", "revolutions"),
     "one-missing-pulse.wav": (one_missing_pulse, "accepted", ""),
     "good.wav": (good, "accepted", ""),
@@ -189,6 +197,8 @@ def test_every_bad_record_is_stored_rejected_with_its_reason_and_the_replay_goes
             assert record.reason and words in record.reason, (name, record.reason)
             assert "\n" not in record.reason and "Traceback" not in record.reason
             assert store.contains(record.sha256, "".join(Path(name).suffixes))  # raw kept
+        elif words:  # accepted without its tach: the quality says why
+            assert words in record.quality["tach_failure"], (name, record.quality)
     repaired = stored["one-missing-pulse.wav"]
     assert [r["kind"] for r in repaired.quality["tach_repairs"]] == ["missing"]
 

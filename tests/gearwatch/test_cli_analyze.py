@@ -69,7 +69,10 @@ def test_analyze_json_localises_the_spall(campaign_dir: Path, record: str) -> No
     assert {"mci_depth", "diff_energy", "diff_kurtosis"} <= set(report["teeth"][0])
     assert set(report["metrics"]) == {"rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4",
                                       "nb4", "m6a", "m8a", "er", "raw_rms", "raw_kurtosis"}
-    assert {"tach_repairs", "speed_variation"} <= set(report["quality"])
+    assert {"tach_repairs", "speed_variation", "score", "rejected_revolutions",
+            "glitch_samples", "dropout_samples", "clipped_samples"} <= set(report["quality"])
+    assert 0.0 < report["quality"]["score"] <= 1.0
+    assert report["channels"][0]["quality"]["score"] == report["quality"]["score"]
     provenance = report["provenance"]
     import hashlib
 

@@ -9,8 +9,13 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from gearwatch.jobs import parse_taken_at, process_file, record_suffix, reprocess_record
-from gearwatch.results import AnalysisParameters
+from gearwatch.floor.results import TOOTH_INDICATORS, AnalysisParameters
+from gearwatch.usecases.ingest_file import (
+    parse_taken_at,
+    process_file,
+    record_suffix,
+    reprocess_record,
+)
 from storage.models import Base
 from storage.raw_store import RawStore
 from storage.repositories import (
@@ -63,7 +68,7 @@ def test_accepted_record_keeps_raw_file_and_stores_results(db_session, store, tm
     assert [p.value for p in trend] == [pytest.approx(1.0, abs=1e-3)]
     # A new rig gets the default alarm rules.
     assert {r.indicator for r in AlarmRuleRepository(db_session).list(record.rig_id)} == {
-        "mci_depth", "kurtosis", "raw_kurtosis"}
+        "mci_depth", "score", "fm4", "kurtosis", "raw_kurtosis"}
 
 
 def test_ingesting_the_same_file_again_changes_nothing(db_session, store, tmp_path) -> None:
@@ -210,7 +215,7 @@ def test_reprocess_from_the_raw_store_after_the_original_is_gone(db_session, sto
 class _RejectsLiteral(FakeAnalyzer):
     def __call__(self, record, campaign, params, input_sha256, baselines):  # type: ignore[no-untyped-def]
         if params.mci_form == "literal":
-            from gearwatch.errors import RecordRejected
+            from gearwatch.floor.errors import RecordRejected
 
             raise RecordRejected("literal MCI refused for this record")
         return super().__call__(record, campaign, params, input_sha256, baselines)
@@ -255,7 +260,7 @@ def test_helpers() -> None:
     assert record_suffix("a/B.WAV") == ".wav"
     assert parse_taken_at("2024-03-01T10:00:00+02:00") == dt.datetime(2024, 3, 1, 8, tzinfo=dt.UTC)
     assert parse_taken_at("2024-03-01T08:00:00Z") == T0
-    from gearwatch.errors import InputError
+    from gearwatch.floor.errors import InputError
 
     with pytest.raises(InputError):
         parse_taken_at("2024-03-01T08:00:00")
@@ -419,4 +424,4 @@ def test_two_workers_one_killed_mid_job_every_record_exactly_once(
             f"day{d:02d}.wav" for d in range(n_records)]
         assert {(status, versions) for _, status, versions in per_record} == {("accepted", 1)}
         indicators = session.scalar(sa.select(sa.func.count()).select_from(ToothIndicator))
-        assert indicators == n_records * 20 * 3
+        assert indicators == n_records * 20 * len(TOOTH_INDICATORS)

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 import sqlalchemy as sa
 
-from gearwatch.errors import InputError, NotFound
-from gearwatch.reconcile_job import ReconcileRequest, create_reconciliation, run_reconciliation
+from gearwatch.floor.errors import InputError, NotFound
+from gearwatch.usecases.reconcile import ReconcileRequest, create_reconciliation, run_reconciliation
 from storage.db import session_factory
 from storage.raw_store import RawStore
 from storage.repositories import ReconciliationRepository
@@ -119,7 +119,7 @@ def test_missing_raw_file_is_found_in_the_store_by_content_or_fails(
     db_engine: sa.Engine, stored: tuple[dict[str, int], RawStore], tmp_path: Path
 ) -> None:
     """A worker may mount the shared store elsewhere: the raw file is found by its sha256."""
-    from gearwatch.reconcile_job import raw_path
+    from gearwatch.usecases.reconcile import raw_path
     from storage.repositories import RecordRepository
 
     ids, store = stored

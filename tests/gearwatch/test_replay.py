@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 import sqlalchemy as sa
 
-from gearwatch.cli import main
-from gearwatch.commands.replay import replay_campaign
-from gearwatch.commands.watch import FolderWatcher
-from gearwatch.results import AnalysisParameters
+from gearwatch.cli.main import main
+from gearwatch.floor.results import TOOTH_INDICATORS, AnalysisParameters
+from gearwatch.usecases.replay import replay_campaign
+from gearwatch.usecases.watch import FolderWatcher
 from ingest.manifest import dump_manifest
 from storage.db import session_factory, session_scope
 from storage.raw_store import RawStore
@@ -128,7 +128,9 @@ def test_replay_command_end_to_end(simulated_campaign: Path, db_url: str, db_eng
         assert [r.status for r in records] == ["accepted"] * 3
         result = RecordRepository(session).current_result(records[0].id)
         assert result.parameters["mci_form"] == "robust"
-        assert len(RecordRepository(session).tooth_indicators(result.id)) == 20 * 3
+        assert len(RecordRepository(session).tooth_indicators(result.id)) == 20 * len(
+            TOOTH_INDICATORS
+        )
         curves = {c.name for c in RecordRepository(session).curves(result.id)}
         assert "mci" in curves
     assert len([p for p in store.rglob("*.wav")]) == 3

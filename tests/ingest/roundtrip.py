@@ -19,7 +19,7 @@ pulse times), reads them back through the registry (:func:`ingest.sources.read_r
 with a manifest built by :func:`ingest.manifest.parse_manifest`, and compares values,
 sample rate and channel names. It also runs the shared bad-input tests: empty file,
 file truncated to half, garbage bytes, corrupted header, missing or renamed channel,
-missing sample rate; each must raise :class:`gearwatch.errors.RecordFormatError`
+missing sample rate; each must raise :class:`gearwatch.floor.errors.RecordFormatError`
 whose message names the file (and the channel). NaN/inf samples must come back
 unchanged (the pipeline rejects them). A tracemalloc test checks the memory bound.
 
@@ -39,10 +39,10 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 import pytest
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError
 from ingest.manifest import parse_manifest
 from ingest.sources import read_record, reader_for
-from ingest.types import Campaign, RecordData
 
 RateInFile = Literal["always", "optional", "never"]
 

@@ -9,11 +9,11 @@ from pathlib import Path
 import can
 import numpy as np
 
+from gearwatch.floor.campaign import RecordData
 from ingest.can import protocol as p
 from ingest.can.assembler import AssembledRecord, RecordAssembler
 from ingest.can.emulator import record_frames
 from ingest.can.logs import iter_can_log, write_can_log
-from ingest.types import RecordData
 
 FS_HZ = 20_000.0
 TAKEN_AT = "2026-03-04T05:06:07.123456+00:00"

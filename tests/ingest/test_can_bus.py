@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 import scipy.io
 
-from gearwatch.errors import InputError
+from gearwatch.floor.campaign import RecordData
+from gearwatch.floor.errors import InputError
 from ingest.can import protocol as p
 from ingest.can.assembler import AssembledRecord
 from ingest.can.emulator import emulate, record_frames
 from ingest.can.live import listen, open_bus
-from ingest.types import RecordData
 from tests.ingest.test_can_assembler import assert_same_record, make_record
 
 UDP_GROUP = "239.74.163.2"

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import tomli_w
 
-from gearwatch.cli import main
+from gearwatch.cli.main import main
 from ingest.manifest import load_manifest
 from ingest.sources import read_record
 
@@ -90,11 +90,11 @@ def test_emulate_then_listen_writes_records_readable_by_the_registry(
 
 
 def test_listen_writes_a_rejected_record_with_its_raw_frames(tmp_path: Path) -> None:
+    from gearwatch.floor.campaign import RecordData
     from ingest.can import protocol as p
     from ingest.can.emulator import record_frames
     from ingest.can.live import open_bus
     from ingest.can.logs import iter_can_log
-    from ingest.types import RecordData
 
     channel = f"cli-{uuid.uuid4().hex}"
     out = tmp_path / "out"

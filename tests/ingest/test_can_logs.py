@@ -15,7 +15,7 @@ import cantools
 import numpy as np
 import pytest
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.errors import RecordFormatError
 from ingest.can.logs import read_can_log_records, write_can_log
 from ingest.sources import read_record
 from tests.ingest.roundtrip import TACH_CHANNEL, RoundTripBase, make_campaign

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.errors import RecordFormatError
 from ingest.sources import read_record
 from tests.ingest.roundtrip import RoundTripBase, make_campaign
 

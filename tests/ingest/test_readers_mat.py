@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.errors import RecordFormatError
 from ingest.sources import read_record
 from tests.ingest.roundtrip import RoundTripBase, make_campaign
 

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.errors import RecordFormatError
 from ingest.sources import read_record
 from tests.ingest.roundtrip import RoundTripBase, is_memory_mapped, make_campaign
 

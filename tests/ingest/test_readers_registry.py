@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import ingest.sources as sources
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError
 from ingest.sources import (
     RecordReader,
     file_sha256,
@@ -20,7 +21,6 @@ from ingest.sources import (
     register_reader,
     registered_suffixes,
 )
-from ingest.types import Campaign, RecordData
 from tests.ingest.roundtrip import make_campaign
 
 
@@ -50,6 +50,17 @@ def test_every_required_format_is_registered() -> None:
     for suffix in (".wav", ".csv", ".csv.gz", ".npz", ".h5", ".hdf5", ".tdms", ".mat"):
         assert suffix in registered_suffixes()
         assert isinstance(reader_for(Path(f"x{suffix}")), RecordReader)
+
+
+def test_the_suffix_index_names_the_module_of_each_builtin_reader() -> None:
+    """Reading a file imports only its reader when the index says which: the index must agree
+    with the readers' own ``suffixes``."""
+    registered_suffixes()  # every built-in reader
+    for suffix, module in sources._BUILTIN_READER_MODULES.items():
+        assert type(sources._registry[suffix]).__module__ == module, suffix
+    for suffix, reader in sources._registry.items():
+        if type(reader).__module__.startswith("ingest.readers."):
+            assert sources._BUILTIN_READER_MODULES[suffix] == type(reader).__module__
 
 
 def test_longest_suffix_wins_and_case_is_ignored() -> None:

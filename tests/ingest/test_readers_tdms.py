@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from nptdms import ChannelObject, TdmsWriter
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.errors import RecordFormatError
 from ingest.sources import read_record
 from tests.ingest.roundtrip import TACH_CHANNEL, RoundTripBase, make_campaign
 

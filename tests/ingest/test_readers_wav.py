@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.io.wavfile
 
-from gearwatch.errors import RecordFormatError
+from gearwatch.floor.errors import RecordFormatError
 from ingest.sources import read_record
 from tests.ingest.roundtrip import RoundTripBase, is_memory_mapped, make_campaign
 

@@ -16,12 +16,18 @@ import scipy.io.wavfile
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gearwatch.floor.campaign import (
+    Campaign,
+    ChannelConfig,
+    RecordData,
+    RigConfig,
+    TachometerConfig,
+)
 from ingest.can import protocol as p
 from ingest.can.assembler import RecordAssembler
 from ingest.can.emulator import emulate, record_frames
 from ingest.can.live import listen, open_bus
 from ingest.sources import read_record
-from ingest.types import Campaign, ChannelConfig, RecordData, RigConfig, TachometerConfig
 
 
 def pcm_samples(counts: np.ndarray) -> np.ndarray:

@@ -1,14 +1,14 @@
 """End to end, on SQLite AND PostgreSQL: record files or CAN frames → the per-record job → database.
 
 (a) the simulated 12-day campaign (spall on pinion tooth 16 from day 10), 16-bit PCM WAV, through
-    :func:`gearwatch.commands.replay.replay_campaign`: every record accepted, the stored per-tooth
+    :func:`gearwatch.usecases.replay.replay_campaign`: every record accepted, the stored per-tooth
     ``mci_depth`` trend alarms on tooth 16 and on no other tooth;
 (b) the real wind-turbine campaign (MAT, pulse-time tachometer, no tooth counts): 10 records
     accepted, whole-record metrics stored, the kurtosis trend rises;
 (c) the same simulated campaign played by the rig emulator onto a python-can bus (``virtual``;
     the last record over ``udp_multicast`` on loopback when that works here), assembled live,
     written as the CAN log ``gearwatch listen-can`` writes, and ingested by the same job
-    (:func:`gearwatch.jobs.process_file`) into another database: every stored per-tooth value,
+    (:func:`gearwatch.usecases.ingest_file.process_file`) into another database: every stored per-tooth value,
     metric, curve and alarm equals (a)'s exactly, record by record.
 """
 
@@ -27,14 +27,15 @@ import can
 import numpy as np
 import pytest
 
-from gearwatch.commands.replay import ReplaySummary, replay_campaign
-from gearwatch.jobs import JobResult, parse_taken_at, process_file
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.results import TOOTH_INDICATORS
+from gearwatch.usecases.ingest_file import JobResult, parse_taken_at, process_file
+from gearwatch.usecases.replay import ReplaySummary, replay_campaign
 from ingest.can.assembler import AssembledRecord, RecordAssembler
 from ingest.can.emulator import emulate
 from ingest.can.live import listen, open_bus
 from ingest.manifest import load_manifest
 from ingest.sources import read_record
-from ingest.types import Campaign, RecordData
 from storage.db import session_scope
 from storage.raw_store import RawStore
 from storage.repositories import (
@@ -148,10 +149,17 @@ def test_simulated_campaign_files_are_accepted_and_alarm_on_the_spalled_tooth_on
     assert summary.internal_errors == 0
 
     alarms = stored_alarms(database, campaign.rig.id)
-    # One per-tooth alarm: mci_depth on the spalled tooth, at alarm level and still open.
-    # (Whole-record alarms, tooth 0, may come too: kurtosis sees the spall as well.)
+    # The former mci_depth rule: one alarm, on the spalled tooth, at alarm level and still open.
+    # The score rule: on the spalled tooth, and at most on a neighbour too (one spall's well
+    # spills into the sectors beside it: a known limit, benchmarks/bench_detection.py).
+    # (Whole-record alarms, tooth 0, come too: FM4 and kurtosis see the spall as well.)
     per_tooth = [(a[0], a[2], a[3], a[4]) for a in alarms if a[2] != 0]
-    assert per_tooth == [("mci_depth", SPALL_TOOTH, "alarm", "alarm")], alarms
+    assert [p for p in per_tooth if p[0] == "mci_depth"] == [
+        ("mci_depth", SPALL_TOOTH, "alarm", "alarm")
+    ], alarms
+    score_teeth = {p[1] for p in per_tooth if p[0] == "score"}
+    assert SPALL_TOOTH in score_teeth, alarms
+    assert score_teeth <= {SPALL_TOOTH - 1, SPALL_TOOTH, SPALL_TOOTH + 1}, alarms
     onset = parse_taken_at(campaign.records[SPALL_ONSET_DAY - 1].taken_at)
     assert all(a[5] >= onset for a in alarms), "an alarm before the spall"
 
@@ -257,7 +265,7 @@ def test_real_wind_turbine_stored_raw_kurtosis_trend_rises(windturbine_replay: R
 
 # -- (c) the same campaign over a CAN bus ------------------------------------------------------
 def _udp_pair() -> tuple[can.BusABC, can.BusABC] | None:
-    from gearwatch.errors import InputError
+    from gearwatch.floor.errors import InputError
 
     port = random.randint(42_000, 48_000)
     try:
@@ -300,7 +308,7 @@ def stream_and_ingest(
     The emulator plays in one thread and the listener assembles in another, while this thread
     runs the job on every record as soon as it is closed, one transaction per record, as
     ``gearwatch listen-can`` followed by ``gearwatch watch`` would."""
-    from gearwatch.commands.listen_can import save
+    from gearwatch.cli.commands.listen_can import save
 
     sender, receiver = buses
     tach = campaign.tachometer
@@ -413,7 +421,7 @@ def test_can_replay_stores_exactly_what_the_file_replay_stores(
     assert len(from_files) == len(over_can) == CAMPAIGN_DAYS
     for day, (expected, got) in enumerate(zip(from_files, over_can, strict=True), start=1):
         assert got["status"] == expected["status"] == "accepted", day
-        assert len(got["result"]["teeth"]) == 20 * 3, day
+        assert len(got["result"]["teeth"]) == 20 * len(TOOTH_INDICATORS), day
         for key in expected:
             if key == "result":
                 for part in expected["result"]:

@@ -8,7 +8,7 @@ import h5py
 import numpy as np
 import pytest
 
-from gearwatch.cli import main
+from gearwatch.cli.main import main
 from physics.config import GearPairModel, model_from_toml
 
 

@@ -15,9 +15,9 @@ import pytest
 from dsp.angle import angle_resample
 from dsp.tach import pulse_times_from_waveform
 from dsp.tsa import synchronous_average
-from gearwatch.pipeline import analyze_record
+from gearwatch.floor.campaign import RecordData
+from gearwatch.usecases.analyze import analyze_record
 from ingest.manifest import parse_manifest
-from ingest.types import RecordData
 from physics.campaign import campaign_plan, manifest_dict
 from physics.config import Deviations, GearPairModel, Sensor, Spall, Tachometer
 from physics.simulator import SimulationResult, simulate

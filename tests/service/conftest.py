@@ -58,8 +58,8 @@ def service_app(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> Iterator[tuple[FastAPI, TestClient, Path]]:
     """One app per backend and session (the schema is already at the alembic head)."""
+    from gearwatch.floor.settings import Settings
     from service.app import create_app
-    from service.settings import Settings
 
     raw_store = tmp_path_factory.mktemp("raw-store")
     settings = Settings(
@@ -80,8 +80,8 @@ def api(
     db_engine_migrated: sa.Engine,  # noqa: F811
 ) -> Iterator[Api]:
     """Empty tables, a fresh key per role."""
+    from gearwatch.usecases.keys import issue_api_key
     from storage.db import session_factory, session_scope
-    from storage.repositories import ApiKeyRepository
 
     app, client, raw_store = service_app
     delete_all_rows(db_engine_migrated)
@@ -89,17 +89,54 @@ def api(
     keys: dict[str, str] = {}
     with session_scope(factory) as session:
         for role in ROLES:
-            keys[role] = ApiKeyRepository(session).create(name=f"{role} key", role=role)[1]
+            keys[role] = issue_api_key(session, name=f"{role} key", role=role)[1]
     yield Api(app, client, keys, factory, raw_store, db_engine_migrated.dialect.name)
 
 
 @pytest.fixture(scope="session")
 def simulated_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 12-day simulated campaign (3 s records), spall on pinion tooth 16 from day 10."""
-    from gearwatch.cli import main
+    from gearwatch.cli.main import main
 
     out = tmp_path_factory.mktemp("campaign") / "sim"
     args = ["simulate-campaign", str(out), "--days", "12", "--seconds", "3", "--seed", "3"]
     args += ["--spall-tooth", str(SPALL_TOOTH), "--onset-day", "10"]
     assert main(args) == 0
     return out
+
+
+@dataclass
+class Replayed:
+    """The simulated campaign replayed by a separate ``gearwatch replay`` process into a SQLite
+    database, with GEARWATCH_ALARM_WEBHOOK_URL pointing at a local listener."""
+
+    db_url: str
+    raw_store: Path
+    received: list[dict[str, Any]]
+    replay_stderr: str
+
+
+@pytest.fixture(scope="session")
+def replayed_campaign(
+    simulated_campaign: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Replayed:
+    import os
+    import subprocess
+    import sys
+
+    from tests.service.webhook_listener import WebhookListener
+
+    folder = tmp_path_factory.mktemp("replayed")
+    url = f"sqlite:///{folder / 'gearwatch.db'}"
+    raw_store = folder / "raw"
+    with WebhookListener() as listener:
+        env = {**os.environ, "GEARWATCH_ALARM_WEBHOOK_URL": listener.url,
+               "GEARWATCH_DASHBOARD_URL": "http://dashboard.test/"}
+        done = subprocess.run(
+            [sys.executable, "-m", "gearwatch", "replay", str(simulated_campaign), "--db", url,
+             "--raw-store", str(raw_store), "--no-progress"],
+            env=env, capture_output=True, text=True, timeout=900, check=False,
+        )
+        assert done.returncode == 0, done.stderr
+        received = list(listener.received)
+    return Replayed(url, raw_store, received, done.stderr)

@@ -58,7 +58,7 @@ def seed_campaign(
     spall_tooth: int = 7,
     onset_day: int = 10,
 ) -> Seeded:
-    from storage.evaluation import evaluate_record
+    from gearwatch.usecases.alarms import evaluate_record
     from storage.repositories import AlarmRuleRepository, CampaignRepository, RecordRepository
 
     config = campaign_config(campaign, rig, pinion_teeth=TEETH)

@@ -461,8 +461,9 @@ def test_upload_with_workers_keeps_the_file_and_queues_the_job(
     whose arguments, run by the worker's job function, ingest the record."""
     from fastapi.testclient import TestClient
 
-    import gearwatch.worker
+    from gearwatch.usecases import job_queue
     from service.app import create_app
+    from service.routers import records
 
     sent: list[tuple[str, str, dict[str, Any]]] = []
 
@@ -470,7 +471,7 @@ def test_upload_with_workers_keeps_the_file_and_queues_the_job(
         sent.append((campaign, path, options))
         return "message-1"
 
-    monkeypatch.setattr(gearwatch.worker, "enqueue_record", fake_enqueue)
+    monkeypatch.setattr(records, "enqueue_record", fake_enqueue)
     operator = api.headers("operator")
     assert api.client.post("/api/v1/campaigns", json=MANIFEST, headers=operator).status_code == 201
     settings = api.app.state.settings.model_copy(update={"job_runner": "broker"})
@@ -490,7 +491,7 @@ def test_upload_with_workers_keeps_the_file_and_queues_the_job(
     assert Path(path).name.startswith(body["sha256"]) and Path(path).is_relative_to(api.raw_store)
     assert options["taken_at"] == "2026-03-07T08:00:00+00:00" and options["label"] == "day 7"
 
-    done = gearwatch.worker.run_job(campaign, path, **options)
+    done = job_queue.run_job(campaign, path, **options)
     assert done["status"] == "rejected"  # not a real WAV, but stored with its reason
     records = api.get("/api/v1/records?campaign_id=upload-test").json()["items"]
     assert [(r["sha256"], r["file_name"], r["label"]) for r in records] == [
@@ -561,6 +562,13 @@ def test_upload_a_real_record_then_reprocess_adds_a_result_version(
     record_id = job["record"]["id"]
     detail = api.get(f"/api/v1/records/{record_id}").json()
     assert detail["revolutions"] >= 20 and len(detail["current_result"]["channels"][0]["teeth"]) > 0
+    assert detail["tooth_frame"] == {"kind": "tachometer"}  # with a tach nothing changes (issue 11)
+    # the data-quality score travels with the record, its result and each channel
+    assert 0.0 < detail["quality_score"] <= 1.0
+    assert detail["quality"]["score"] == detail["quality_score"]
+    assert detail["current_result"]["quality_score"] == detail["quality_score"]
+    assert detail["current_result"]["channels"][0]["quality"]["score"] == detail["quality_score"]
+    assert detail["current_result"]["quality"]["rejected_revolutions"] == 0
     first_result = detail["current_result"]["id"]
 
     url = f"/api/v1/records/{record_id}/reprocess"

@@ -21,7 +21,7 @@ KEY_PATTERN = re.compile(r"^gw_[0-9a-f]{8}_[A-Za-z0-9_-]{20,}$")
 def test_keys_create_prints_the_key_alone_and_it_works(
     api: Api, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from gearwatch.cli import main
+    from gearwatch.cli.main import main
 
     url = api.app.state.settings.database_url
     assert main(["keys", "create", "--role", "operator", "--name", "night shift", "--db", url]) == 0
@@ -106,6 +106,6 @@ def test_serve_runs_the_api_on_the_given_port_and_database(tmp_path: Path) -> No
 
 
 def test_serve_refuses_a_bad_port() -> None:
-    from gearwatch.cli import main
+    from gearwatch.cli.main import main
 
     assert main(["serve", "--port", "70000"]) == 2

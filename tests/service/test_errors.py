@@ -7,7 +7,7 @@ import sqlalchemy.exc as sa_exc
 from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from gearwatch import errors
+from gearwatch.floor import errors
 from service.errors import install_error_handlers
 
 RAISED = {

@@ -43,7 +43,7 @@ class Stored:
 def stored(api: Api, manifest: Path) -> Stored:
     """The eccentric record and a garbage one (same rig, kept raw files), and records of rigs
     and campaigns a reconciliation cannot use (their raw files are never reached)."""
-    from ingest.types import TachometerConfig
+    from gearwatch.floor.campaign import TachometerConfig
     from storage.raw_store import RawStore
     from storage.repositories import CampaignRepository, RecordRepository
     from tests.storage.factories import T0, campaign_config
@@ -88,6 +88,7 @@ def test_reconciliation_runs_after_the_response_and_is_served(api: Api, stored: 
     assert response.status_code == 202, response.text
     queued = response.json()
     assert queued["status"] == "queued" and queued["record_id"] == stored.record
+    assert queued["progress"] == {"stage": "queued", "fraction": 0.0}
     assert queued["options"] == {**fx.FAST_OPTIONS, "channel": "acc"}
     assert queued["provenance"]["raw_sha256"] == stored.sha256
     url = queued["links"]["self"]
@@ -97,6 +98,7 @@ def test_reconciliation_runs_after_the_response_and_is_served(api: Api, stored: 
     done = api.get(url).json()
     assert done["status"] == "done", done
     assert done["error"] is None and done["outcome"] == done["result"]["status"]
+    assert done["progress"] == {"stage": "done", "fraction": 1.0}
     assert done["provenance"]["raw_sha256"] == stored.sha256
     assert done["provenance"]["code_version"] and done["model_toml"] == model_toml
     assert done["started_at"] <= done["finished_at"]
@@ -136,7 +138,7 @@ def test_a_failed_reconciliation_shows_its_reason(api: Api, stored: Stored) -> N
 def test_report_and_model_are_409_until_done_and_lists_are_newest_first(
     api: Api, stored: Stored
 ) -> None:
-    from gearwatch.reconcile_job import ReconcileRequest, create_reconciliation
+    from gearwatch.usecases.reconcile import ReconcileRequest, create_reconciliation
     from storage.raw_store import RawStore
 
     with api.session() as session:
@@ -223,13 +225,12 @@ def test_reconciliation_on_a_worker_over_rabbitmq(
     import pika
     from fastapi.testclient import TestClient
 
-    import gearwatch.worker
     from service.app import create_app
     from tests.gearwatch.test_jobs import _require_broker, _start_worker, _stop, broker_url
 
     _require_broker()
     queue = f"gw_test_{secrets.token_hex(6)}"
-    monkeypatch.setattr(gearwatch.worker.reconcile_record, "queue_name", queue)
+    monkeypatch.setenv("GEARWATCH_QUEUE", queue)  # the queue the service sends to
     settings = api.app.state.settings.model_copy(update={"job_runner": "broker"})
     env = {**os.environ, "GEARWATCH_QUEUE": queue, "GEARWATCH_BROKER_URL": broker_url(),
            "NUMBA_NUM_THREADS": "1", "dramatiq_restart_delay": "0"}
@@ -264,3 +265,50 @@ def test_reconciliation_on_a_worker_over_rabbitmq(
     assert finding["parameters"]["amplitude_um"] == pytest.approx(fx.ECCENTRICITY_UM, rel=0.2)
     assert body["provenance"]["raw_sha256"] == stored.sha256
     assert body["model_toml"] and "sample_rate_hz = 8000.0" in body["model_toml"]
+
+
+# -- issue 12 item 8: inline reconciliations are bounded and resumed ---------------------------
+@pytest.mark.parametrize("db_url", ["sqlite"], indirect=True)
+def test_inline_reconciliations_beyond_the_queue_are_503(
+    api: Api, stored: Stored, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from service import inline_jobs
+
+    monkeypatch.setattr(inline_jobs, "_waiting", inline_jobs.MAX_WAITING)
+    response = post(api, stored.record, {**fx.FAST_OPTIONS, "reference_record_id": stored.garbage})
+    error = error_of(response, 503)
+    assert error["code"] == "reconciliation_queue_full"
+    assert response.headers["retry-after"].isdigit()
+    assert api.get(f"{RECORDS}/{stored.record}/reconciliations").json()["items"] == []
+    assert inline_jobs._waiting == inline_jobs.MAX_WAITING  # nothing reserved on a refusal
+
+
+@pytest.mark.parametrize("db_url", ["sqlite"], indirect=True)
+def test_an_interrupted_inline_reconciliation_is_picked_up_at_start(
+    api: Api, stored: Stored
+) -> None:
+    """A row left ``running`` by an API process that stopped runs again when the service
+    starts (here it fails fast: its reference is garbage)."""
+    from fastapi.testclient import TestClient
+
+    from gearwatch.usecases.reconcile import ReconcileRequest, create_reconciliation
+    from service.app import create_app
+    from storage.raw_store import RawStore
+
+    with api.session() as session:
+        row = create_reconciliation(
+            session, stored.record,
+            ReconcileRequest(reference_record_id=stored.garbage, **fx.FAST_OPTIONS),
+            raw_store=RawStore(api.raw_store),
+        )
+        row.status = "running"
+        session.commit()
+        row_id = row.id
+    with TestClient(create_app(api.app.state.settings)):
+        deadline = time.monotonic() + 120
+        while (status := api.get(f"/api/v1/reconciliations/{row_id}").json()["status"]) in (
+            "queued", "running"
+        ):
+            assert time.monotonic() < deadline, status
+            time.sleep(0.1)
+    assert status == "failed"

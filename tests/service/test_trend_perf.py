@@ -79,7 +79,11 @@ def reference(
     session: Session, rig_name: str, indicator: str, tooth: int | None, channel: str | None
 ) -> dict[str, Any]:
     """The original implementation: points one by one, then the validated pydantic model."""
+    import sqlalchemy as sa
+
+    from gearwatch.floor.indicators import indicator_info, indicator_unit
     from service import schemas
+    from storage.models import Channel, Record
     from storage.repositories import RigRepository, TrendRepository
 
     rig = RigRepository(session).get_by_name(rig_name)
@@ -102,13 +106,21 @@ def reference(
     for point in points:
         if point.record_id not in row_of:
             row_of[point.record_id] = len(records)
-            records.append({"record_id": point.record_id, "taken_at": point.taken_at})
+            label = session.get(Record, point.record_id).label  # type: ignore[union-attr]
+            records.append(
+                {"record_id": point.record_id, "taken_at": point.taken_at, "label": label}
+            )
             values.append([None] * len(teeth))
         if point.tooth in teeth:
             values[row_of[point.record_id]][teeth.index(point.tooth)] = point.value
+    units = {c.name: c.unit for c in session.scalars(sa.select(Channel))}
     model = schemas.TrendOut(
         rig_id=rig.name,
-        indicator=indicator,  # type: ignore[arg-type]
+        indicator=indicator,
+        title=indicator_info(indicator).title,
+        scope="tooth",
+        unit=indicator_unit(indicator, units.get(channel or "", "")) if points else
+        indicator_unit(indicator, ""),
         channel=channel,
         teeth=teeth,
         records=records,  # type: ignore[arg-type]
@@ -240,8 +252,8 @@ def test_accept_encoding(accept_encoding: str, gzip_wanted: bool) -> None:
 def cached_app(api: Api, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Any, Api]]:
     """A second app on the same database that trusts its cache for an hour; it counts the
     SQL statements that read trend data or rigs."""
+    from gearwatch.floor.settings import Settings
     from service.app import create_app
-    from service.settings import Settings
 
     engine = api.session_factory.kw["bind"]
     settings = Settings(

@@ -8,20 +8,20 @@ from typing import Any
 
 import numpy as np
 
-from gearwatch.results import (
+from gearwatch.floor.campaign import (
+    Campaign,
+    ChannelConfig,
+    RecordEntry,
+    RigConfig,
+    TachometerConfig,
+)
+from gearwatch.floor.results import (
     METRIC_NAMES,
     ChannelAnalysis,
     Provenance,
     Quality,
     RecordAnalysis,
     ToothResult,
-)
-from ingest.types import (
-    Campaign,
-    ChannelConfig,
-    RecordEntry,
-    RigConfig,
-    TachometerConfig,
 )
 
 T0 = dt.datetime(2024, 3, 1, 8, 0, tzinfo=dt.UTC)

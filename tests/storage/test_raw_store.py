@@ -7,7 +7,7 @@ import os
 
 import pytest
 
-from gearwatch.errors import InputError
+from gearwatch.floor.errors import InputError
 from storage.raw_store import RawStore
 
 

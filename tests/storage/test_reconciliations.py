@@ -9,7 +9,7 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from gearwatch.errors import NotFound
+from gearwatch.floor.errors import NotFound
 from storage.models import Reconciliation, Record
 from storage.repositories import CampaignRepository, ReconciliationRepository, RecordRepository
 from tests.storage.factories import T0, campaign_config
@@ -33,8 +33,13 @@ def test_queued_running_done_with_json_result_and_text(db_session: Session) -> N
     db_session.commit()
     assert (row.status, row.error, row.model_toml, row.started_at) == ("queued", "", None, None)
 
+    rows.set_progress(row.id, "calibration", 0.5)  # not running yet: nothing stored
+    assert row.result is None
     assert rows.start(row, "1.0+gdef") is True
     assert row.status == "running" and row.code_version == "1.0+gdef" and row.started_at
+    rows.set_progress(row.id, "reference: selection", 0.123456)
+    db_session.commit()
+    assert row.result == {"progress": {"stage": "reference: selection", "fraction": 0.1235}}
     result = {"status": "explained", "final": {"chi2_dof": 1.01, "misfit": math.nan},
               "findings": [{"mechanism": "tooth_spall", "tooth": 5}]}
     rows.finish(row, model_toml="[geometry]\n", result=result, report_html="<!doctype html>",

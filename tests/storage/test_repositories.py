@@ -11,9 +11,11 @@ import pytest
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from gearwatch.errors import Conflict, InputError, NotFound
-from gearwatch.results import METRIC_NAMES
-from storage.evaluation import evaluate_record
+from detection.default_rules import DEFAULT_RULES
+from gearwatch.floor.errors import Conflict, InputError, NotFound
+from gearwatch.floor.results import METRIC_NAMES
+from gearwatch.usecases.alarms import evaluate_record
+from gearwatch.usecases.keys import issue_api_key, verify_api_key
 from storage.models import ApiKey, Record, ResultVersion, ToothIndicator
 from storage.repositories import (
     AlarmRepository,
@@ -311,8 +313,12 @@ def test_alarm_rule_crud_and_validation(db_session: Session) -> None:
     campaign = CampaignRepository(db_session).ensure(campaign_config())
     rules = AlarmRuleRepository(db_session)
     defaults = rules.ensure_defaults(campaign.rig_id)
-    assert sorted(r.indicator for r in defaults) == ["kurtosis", "mci_depth", "raw_kurtosis"]
-    assert len(rules.ensure_defaults(campaign.rig_id)) == 3  # idempotent
+    assert sorted(r.indicator for r in defaults) == [
+        "fm4", "kurtosis", "mci_depth", "raw_kurtosis", "score",
+    ]
+    assert len(rules.ensure_defaults(campaign.rig_id)) == len(DEFAULT_RULES)  # idempotent
+    score = next(r for r in defaults if r.indicator == "score")
+    assert (score.min_baseline_records, score.cusum_reference, score.cusum_limit) == (3, 2.0, 3.0)
     rule = rules.create(campaign.rig_id, "diff_energy", baseline_records=5, persistence=2)
     assert (rule.warning_level, rule.alarm_level, rule.clear_level) == (4.0, 8.0, 2.0)
     with pytest.raises(Conflict):
@@ -449,21 +455,22 @@ def test_changing_baseline_size_restarts_the_baselines(db_session: Session) -> N
 # -- API keys and audit ------------------------------------------------------------------------
 def test_api_keys_are_hashed_verified_and_revocable(db_session: Session) -> None:
     keys = ApiKeyRepository(db_session)
-    key, plaintext = keys.create("ci robot", "operator")
+    key, plaintext = issue_api_key(db_session, name="ci robot", role="operator")
     db_session.commit()
     assert plaintext.startswith(f"gw_{key.prefix}_") and len(plaintext) > 40
     stored = db_session.scalar(sa.select(ApiKey).where(ApiKey.id == key.id))
     assert stored.key_sha256 == hashlib.sha256(plaintext.encode()).hexdigest()
     assert plaintext not in (stored.key_sha256, stored.prefix, stored.name)
-    assert keys.verify(plaintext).id == key.id
+    assert verify_api_key(db_session, plaintext).id == key.id
     assert keys.get(key.id).last_used_at is not None
-    assert keys.verify(plaintext[:-1] + ("A" if plaintext[-1] != "A" else "B")) is None
-    assert keys.verify("gw_nothere_x") is None and keys.verify("nonsense") is None
+    assert verify_api_key(db_session, plaintext[:-1] + ("A" if plaintext[-1] != "A" else "B")) is None
+    assert verify_api_key(db_session, "gw_nothere_x") is None
+    assert verify_api_key(db_session, "nonsense") is None
     assert keys.set_role(key.id, "admin").role == "admin"
     with pytest.raises(InputError):
-        keys.create("x", "superuser")
+        issue_api_key(db_session, name="x", role="superuser")
     keys.revoke(key.id)
-    assert keys.verify(plaintext) is None
+    assert verify_api_key(db_session, plaintext) is None
     assert keys.list() == [] and len(keys.list(include_revoked=True)) == 1
 
 
@@ -479,19 +486,25 @@ def test_audit_log_newest_first_with_filters(db_session: Session) -> None:
     assert audit.list(action="nothing") == []
 
 
-def test_out_of_order_record_is_left_out_of_the_evaluation(db_session: Session,
-                                                            caplog: pytest.LogCaptureFixture
-                                                            ) -> None:
+def test_a_late_record_replays_its_tracks_and_says_which_alarms_changed(
+    db_session: Session, caplog: pytest.LogCaptureFixture
+) -> None:
     campaign = CampaignRepository(db_session).ensure(campaign_config())
     AlarmRuleRepository(db_session).create(campaign.rig_id, "mci_depth", baseline_records=2,
                                            persistence=1)
     for day in (0, 1, 5):
         ingest_day(db_session, campaign, day, 0.1)
-    with caplog.at_level("WARNING", logger="storage.evaluation"):
-        assert ingest_day(db_session, campaign, 3, 9.0) == []  # older than day 5: skipped
-    assert "not newer than" in caplog.text
-    assert AlarmRepository(db_session).count() == 0
-    assert ingest_day(db_session, campaign, 6, 9.0) != []  # in order again: evaluated
+    with caplog.at_level("INFO", logger="gearwatch.usecases.alarms"):
+        changes = ingest_day(db_session, campaign, 3, 9.0)  # older than day 5: replayed
+    assert "replaying" in caplog.text
+    # Day 3 raises the alarm (persistence 1), day 5 (back to the baseline) clears it.
+    assert [(c.tooth, c.state, c.opened) for c in changes] == [(7, "alarm", True),
+                                                               (7, "cleared", False)]
+    (alarm,) = AlarmRepository(db_session).list()
+    assert alarm.raised_at == T0 + dt.timedelta(days=3)
+    assert alarm.cleared_at == T0 + dt.timedelta(days=5)
+    assert ingest_day(db_session, campaign, 6, 9.0) != []  # in order again: one more step
+    assert AlarmRepository(db_session).count() == 2
 
 
 @pytest.mark.parametrize(
@@ -537,7 +550,7 @@ def test_level_changes_keep_tracks_and_alarms(db_session: Session) -> None:
 
 
 def test_reevaluation_follows_reprocessed_results(db_session: Session) -> None:
-    from storage.evaluation import reevaluate_rig
+    from gearwatch.usecases.alarms import reevaluate_rig
 
     campaign = CampaignRepository(db_session).ensure(campaign_config())
     AlarmRuleRepository(db_session).create(campaign.rig_id, "mci_depth", baseline_records=3,
@@ -561,7 +574,7 @@ def test_reevaluation_follows_reprocessed_results(db_session: Session) -> None:
 
 
 def again_is_stable(session: Session, rig_id: int) -> bool:
-    from storage.evaluation import reevaluate_rig
+    from gearwatch.usecases.alarms import reevaluate_rig
 
     first = [(a.tooth, a.state, a.raised_at) for a in AlarmRepository(session).list()]
     reevaluate_rig(session, rig_id)

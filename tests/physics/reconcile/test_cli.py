@@ -53,7 +53,9 @@ def test_reconcile_names_the_spall_and_writes_json_report_and_model(campaign: Pa
     angle = [m for m in data["mismatches"] if m["domain"] == "angle" and m["wheel"] == "pinion"]
     assert angle and angle[0]["teeth"] == [5]
     assert "status" in proc.stdout
-    assert (campaign / "r.html").read_text().startswith("<!doctype html>")
+    page = (campaign / "r.html").read_text()
+    assert page.startswith("<!doctype html>") and '{"' not in page  # tables, no JSON dump
+    assert 'id="conclusion"' in page and "tooth spall" in page and "pinion tooth 5" in page
     updated = model_from_toml((campaign / "updated.toml").read_text())
     assert [(s.wheel, s.tooth) for s in updated.deviations.spalls] == [("pinion", 5)]
     # Small band (4 kHz) and two findings at most: depth to 25 %.

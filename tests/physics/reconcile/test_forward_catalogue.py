@@ -10,8 +10,8 @@ import pytest
 from physics.config import GearPairModel, Spall
 from physics.reconcile import CATALOGUE, MECHANISM_NAMES, UNAVAILABLE, Candidate
 from physics.reconcile.forward import ForwardModel, ForwardSetup, mode_response, reconciled_modes
-from physics.reconcile.method import _crt_shift, _shift_phase
 from physics.reconcile.observables import hunting_spectrum
+from physics.reconcile.selection import _crt_shift, _shift_phase
 from physics.simulator import simulate
 
 ISSUE_NAMES = (

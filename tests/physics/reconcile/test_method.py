@@ -9,8 +9,8 @@ import pytest
 
 from physics.config import GearPairModel, StructuralMode, model_from_toml, model_to_toml
 from physics.reconcile import MeasuredRecord, ReconciliationResult, reconcile
-from physics.reconcile.method import honesty_status
 from physics.reconcile.report import html_report
+from physics.reconcile.results import honesty_status
 from physics.simulator import simulate
 
 from .conftest import fast_options

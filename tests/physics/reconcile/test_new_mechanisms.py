@@ -22,8 +22,8 @@ from physics.reconcile import (
     MeasuredRecord,
     reconcile,
 )
+from physics.reconcile.fitter import _Fitter
 from physics.reconcile.forward import ForwardSetup, channel_model
-from physics.reconcile.method import _Fitter
 from physics.reconcile.observables import hunting_spectrum
 from physics.simulator import simulate
 

@@ -1,0 +1,93 @@
+"""Tooth-frame alignment without a tachometer (:mod:`dsp.toothframe`): shifted, ambiguous, no match, spall."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dsp.toothframe import (
+    MIN_MARGIN,
+    align_fingerprint,
+    circular_shift,
+    frame_delay_samples,
+    mesh_phase_position,
+    resample_periodic,
+    tooth_fingerprint,
+)
+
+TEETH, SPM = 29, 32
+N = TEETH * SPM
+
+
+def gear_average(seed: int = 0, pattern_seed: int = 7, noise: float = 0.02) -> np.ndarray:
+    """Mesh harmonics + a smooth per-tooth pattern (the fingerprint) + runout + noise, tach frame."""
+    n = np.arange(N)
+    teeth = np.random.default_rng(pattern_seed).normal(0.0, 0.3, TEETH)
+    pattern = np.convolve(np.tile(np.repeat(teeth, SPM), 3), np.hanning(SPM) / np.hanning(SPM).sum(), "same")[N : 2 * N]
+    mesh = np.cos(2 * np.pi * TEETH * (n - 3.3) / N) + 0.4 * np.cos(4 * np.pi * TEETH * n / N + 1.0)
+    runout = 0.3 * np.cos(2 * np.pi * n / N + 0.5)
+    return mesh * (1 + runout) + pattern + noise * np.random.default_rng(seed).standard_normal(N)
+
+
+def test_fractional_shift_is_exact_and_invertible() -> None:
+    spectrum = np.fft.rfft(gear_average())
+    spectrum[-1] = 0.0  # exact for a band-limited average (the Nyquist bin has no phase to move)
+    x = np.fft.irfft(spectrum, n=N)
+    assert np.allclose(circular_shift(circular_shift(x, 17.25), -17.25), x, atol=1e-9)
+    assert np.array_equal(circular_shift(x, 3), np.roll(x, 3))
+    assert np.allclose(resample_periodic(resample_periodic(x, 2 * N), N), x, atol=1e-9)
+
+
+@pytest.mark.parametrize("shift_teeth, fraction", [(0, 0.0), (5, 0.3), (28, 0.71), (13, 0.5)])
+def test_a_shifted_record_is_brought_back_into_the_reference_frame(shift_teeth: int, fraction: float) -> None:
+    reference = gear_average(seed=1)
+    # another day: same gear, other noise, origin moved by whole teeth plus a fraction of a mesh period
+    record = circular_shift(gear_average(seed=2), (shift_teeth + fraction) * SPM)
+    alignment = align_fingerprint(tooth_fingerprint(record, TEETH), tooth_fingerprint(reference, TEETH), TEETH)
+    assert alignment.refusal == ""
+    assert alignment.margin >= MIN_MARGIN
+    # into the reference's own (tach) frame: where its mesh harmonic peaks
+    delay = frame_delay_samples(record, TEETH, alignment.delay_samples, mesh_phase_position(reference, TEETH))
+    back = circular_shift(record, delay)
+    assert np.corrcoef(back, reference)[0, 1] > 0.99
+    assert np.max(np.abs(back - gear_average(seed=2))) < 0.2  # the same samples, not a neighbour tooth
+
+
+def test_a_growing_spall_does_not_move_the_frame() -> None:
+    reference = gear_average(seed=1)
+    spalled = gear_average(seed=3)
+    spalled[10 * SPM : 10 * SPM + 20] += 8.0 * np.hanning(20)  # one tooth, far louder than the pattern
+    record = circular_shift(spalled, 17 * SPM)
+    alignment = align_fingerprint(tooth_fingerprint(record, TEETH), tooth_fingerprint(reference, TEETH), TEETH)
+    assert (alignment.shift_teeth, alignment.refusal) == (17, "")
+
+
+def test_an_ambiguous_pattern_is_refused_with_the_margin() -> None:
+    # a pattern that repeats after half a revolution of a 28-tooth wheel: two shifts fit equally
+    teeth = 28
+    n = np.arange(teeth * SPM)
+    half = np.random.default_rng(4).normal(0.0, 0.3, teeth // 2)
+    pattern = np.repeat(np.tile(half, 2), SPM)
+    average = np.cos(2 * np.pi * teeth * n / n.size) + pattern
+    other = np.roll(average, 3 * SPM) + 0.01 * np.random.default_rng(5).standard_normal(n.size)
+    alignment = align_fingerprint(tooth_fingerprint(other, teeth), tooth_fingerprint(average, teeth), teeth)
+    assert alignment.shift_teeth is None
+    assert alignment.refusal.startswith("ambiguous tooth frame")
+    assert "margin" in alignment.refusal and alignment.margin < MIN_MARGIN
+
+
+def test_another_gear_or_pure_noise_is_refused_not_aligned() -> None:
+    reference = gear_average(seed=1, pattern_seed=7)
+    other_gear = gear_average(seed=2, pattern_seed=8, noise=0.0)
+    alignment = align_fingerprint(tooth_fingerprint(other_gear, TEETH), tooth_fingerprint(reference, TEETH), TEETH)
+    assert alignment.shift_teeth is None and alignment.refusal
+    perfect = np.cos(2 * np.pi * TEETH * np.arange(N) / N)
+    assert "perfectly regular" in align_fingerprint(tooth_fingerprint(perfect, TEETH),
+                                                    tooth_fingerprint(reference, TEETH), TEETH).refusal
+
+
+def test_bad_input_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="whole number"):
+        tooth_fingerprint(np.zeros(100), TEETH)
+    with pytest.raises(ValueError, match="NaN"):
+        tooth_fingerprint(np.full(N, np.nan), TEETH)

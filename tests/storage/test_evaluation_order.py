@@ -1,0 +1,106 @@
+"""Issue 12 item 5: baselines, alarm states and transitions are a function of the set of
+accepted records ordered by ``taken_at``, whatever order the records arrive in.
+
+Two rigs get the same 16 records (a tooth-7 excursion that opens, escalates and clears, a
+whole-record kurtosis excursion, two records taken at the same instant): one in ``taken_at``
+order, the other shuffled. Everything the evaluation stores must be identical."""
+
+from __future__ import annotations
+
+import datetime as dt
+import random
+
+import pytest
+from sqlalchemy.orm import Session
+
+from gearwatch.usecases.alarms import evaluate_record
+from storage.repositories import (
+    AlarmRepository,
+    AlarmRuleRepository,
+    CampaignRepository,
+    RecordRepository,
+)
+from tests.storage.evaluation_snapshot import evaluation_snapshot
+from tests.storage.factories import T0, analysis, campaign_config
+
+DAYS = [0, 1, 2, 3, 4, 5, 6, 7, 8, 8, 9, 10, 11, 12, 13, 14]
+"""Day 8 twice: a tie in ``taken_at`` is broken by the file's sha256."""
+
+
+def _depth(index: int, day: int) -> dict[int, float]:
+    rng = random.Random(index)
+    depths = {tooth: 0.1 + rng.uniform(-0.004, 0.004) for tooth in range(1, 21)}
+    depths[7] = {7: 0.13, 8: 0.16, 9: 0.17, 10: 0.18, 11: 0.16}.get(day, depths[7])
+    return depths
+
+
+def _kurtosis(day: int) -> float:
+    return 3.0 + 0.02 * (day % 3) + (3.0 if day in (6, 7, 8) else 0.0)
+
+
+def _ingest(session: Session, tag: str, order: list[int]) -> int:
+    campaign = CampaignRepository(session).ensure(campaign_config(f"camp-{tag}", f"rig-{tag}"))
+    rules = AlarmRuleRepository(session)
+    rules.create(campaign.rig_id, "mci_depth", baseline_records=4, persistence=2,
+                 warning_level=4.0, alarm_level=8.0, clear_level=2.0)
+    rules.create(campaign.rig_id, "kurtosis", baseline_records=4, persistence=1)
+    session.commit()
+    records = RecordRepository(session)
+    for index in order:
+        day = DAYS[index]
+        # The same record in both rigs sorts the same way among equal taken_at values.
+        sha256 = f"{index:04x}".ljust(63, "0") + tag
+        record = records.add(campaign, sha256=sha256, file_name=f"r{index}.wav",
+                             raw_location=f"/raw/{sha256}.wav",
+                             taken_at=T0 + dt.timedelta(days=day))
+        result_analysis = analysis(sha256=sha256, mci_depth=_depth(index, day),
+                                   kurtosis=_kurtosis(day))
+        records.mark_accepted(record, result_analysis)
+        evaluate_record(session, record, records.add_result(record, result_analysis))
+        session.commit()
+    return campaign.rig_id
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_shuffled_arrival_gives_the_same_baselines_states_and_transitions(
+    db_session: Session, seed: int
+) -> None:
+    sequential = _ingest(db_session, "a", list(range(len(DAYS))))
+    shuffled_order = list(range(len(DAYS)))
+    random.Random(seed).shuffle(shuffled_order)
+    assert shuffled_order != sorted(shuffled_order)
+    shuffled = _ingest(db_session, "b", shuffled_order)
+    expected = evaluation_snapshot(db_session, sequential)
+    # The scenario raises what it should: tooth 7 warns, escalates and clears; kurtosis alarms.
+    assert [(a[0], a[1], a[2], a[3]) for a in expected["alarms"]] == [
+        ("kurtosis", 0, "cleared", "alarm"), ("mci_depth", 7, "cleared", "alarm")
+    ]
+    assert evaluation_snapshot(db_session, shuffled) == expected
+
+
+def test_late_record_replay_keeps_the_alarm_id_and_its_acknowledgement(
+    db_session: Session,
+) -> None:
+    """A late record that does not change an alarm leaves it as it was (same id, still
+    acknowledged, history in the same order)."""
+    order = [i for i in range(len(DAYS)) if i != 2]
+    rig_id = _ingest(db_session, "c", order[:11])
+    alarms = AlarmRepository(db_session)
+    tooth7 = next(a for a in alarms.list(rig_id=rig_id) if a.tooth == 7)
+    alarms.acknowledge(tooth7.id, who="olga", comment="seen")
+    db_session.commit()
+    before = [(e.state, e.who) for e in alarms.history(tooth7.id)]
+    campaign = CampaignRepository(db_session).get_by_name("camp-c")
+    assert campaign is not None
+    records = RecordRepository(db_session)
+    sha256 = f"{2:04x}".ljust(63, "0") + "c"
+    record = records.add(campaign, sha256=sha256, file_name="r2.wav",
+                         raw_location=f"/raw/{sha256}.wav", taken_at=T0 + dt.timedelta(days=2))
+    result_analysis = analysis(sha256=sha256, mci_depth=_depth(2, 2), kurtosis=_kurtosis(2))
+    records.mark_accepted(record, result_analysis)
+    changes = evaluate_record(db_session, record, records.add_result(record, result_analysis))
+    db_session.commit()
+    again = alarms.get(tooth7.id)
+    assert again.state == "acknowledged" and again.acknowledged_by == "olga"
+    assert [(e.state, e.who) for e in alarms.history(tooth7.id)] == before
+    assert all(c.alarm_id != tooth7.id for c in changes)
