@@ -11,7 +11,8 @@ WORKDIR /app
 
 # Dependencies first so that code edits do not re-install them.
 COPY pyproject.toml README.md ./
-COPY gearwatch/__init__.py gearwatch/version.py gearwatch/
+COPY gearwatch/__init__.py gearwatch/
+COPY gearwatch/floor/__init__.py gearwatch/floor/version.py gearwatch/floor/
 RUN pip install --upgrade pip && pip install -e . && pip uninstall -y gearwatch
 
 # The source tree, installed in place so that the dashboard's static files (service/static/**)

@@ -27,11 +27,11 @@ import uuid
 
 import numpy as np
 
+from gearwatch.floor.campaign import RecordData
 from ingest.can import protocol as p
 from ingest.can.assembler import AssembledRecord, RecordAssembler
 from ingest.can.emulator import emulate, record_frames
 from ingest.can.live import listen, open_bus
-from ingest.types import RecordData
 
 FS_HZ = 20_000.0
 TARGET_FPS = 20_000.0

@@ -41,10 +41,10 @@ import numpy as np
 import scipy.io
 import scipy.io.wavfile
 
-from gearwatch.commands.replay import replay_campaign
+from gearwatch.floor.campaign import Campaign, RecordData, RecordEntry
+from gearwatch.usecases.replay import replay_campaign
 from ingest.manifest import dump_manifest, load_manifest
 from ingest.sources import read_record
-from ingest.types import Campaign, RecordData, RecordEntry
 from storage.db import open_database, session_scope
 from storage.raw_store import RawStore
 
@@ -184,8 +184,8 @@ def bench_format(manifest: Path, work: Path, repeat: int) -> dict[str, float]:
 
 def bench_can(campaign: Campaign, records: list[RecordData], work: Path) -> dict[str, float]:
     """Emulator → virtual bus → live assembly → CAN log → job → SQLite."""
-    from gearwatch.commands.listen_can import save
-    from gearwatch.jobs import process_file
+    from gearwatch.cli.commands.listen_can import save
+    from gearwatch.usecases.ingest_file import process_file
     from ingest.can.assembler import AssembledRecord, RecordAssembler
     from ingest.can.emulator import emulate
     from ingest.can.live import listen, open_bus

@@ -67,10 +67,17 @@ LOAD_CPU = "1"
 
 def seed(url: str) -> str:
     """365 accepted records × 20 teeth on one rig; returns a viewer key."""
-    from gearwatch.results import ChannelAnalysis, Provenance, Quality, RecordAnalysis, ToothResult
-    from ingest.types import Campaign, ChannelConfig, RigConfig, TachometerConfig
+    from gearwatch.floor.campaign import Campaign, ChannelConfig, RigConfig, TachometerConfig
+    from gearwatch.floor.results import (
+        ChannelAnalysis,
+        Provenance,
+        Quality,
+        RecordAnalysis,
+        ToothResult,
+    )
+    from gearwatch.usecases.keys import issue_api_key
     from storage.db import open_database, session_scope
-    from storage.repositories import ApiKeyRepository, CampaignRepository, RecordRepository
+    from storage.repositories import CampaignRepository, RecordRepository
 
     engine, factory = open_database(url)
     config = Campaign(
@@ -109,7 +116,7 @@ def seed(url: str) -> str:
             )
             records.mark_accepted(record, analysis)
             records.add_result(record, analysis)
-        key = ApiKeyRepository(session).create(name="bench", role="viewer")[1]
+        key = issue_api_key(session, name="bench", role="viewer")[1]
     engine.dispose()
     return key
 

@@ -1,0 +1,615 @@
+"""Detection benchmark: how early, on which tooth, and how often falsely each method alarms.
+
+Run: ``nice -n 10 .venv/bin/python benchmarks/bench_detection.py [--quick] [--part tune|held-out]
+[--generator project|independent|both] [--workers 2]``.
+
+What runs
+---------
+The **same per-record pipeline and alarm evaluation as the replay path, in-process**:
+:func:`gearwatch.usecases.analyze.analyze_record` on every daily record (no file, no database), then
+:func:`detection.alarms.step` per (rule, tooth) in day order exactly as
+:func:`storage.evaluation.evaluate_record` does. The database/REST layers add nothing to the
+detection and would cost minutes per campaign on a loaded 2-core machine.
+
+Evaluation set
+--------------
+Each campaign is drawn from its seed (fixed seed ranges, below): pinion teeth 13–80 and a random
+ratio (gear teeth 1.05–3.5× the pinion's), contact ratio 1.3–2.0 (pressure angle and addendum
+solved for it), noise 0.3–3× the clean signal's rms, slow speed drift within a record (±4 %),
+day-to-day load ±10 % and speed ±5 %, a sensor gain step (×0.5–2) from a random day on, glitch
+samples (1–3 samples at ±20× rms in 30 % of records), structural modes drawn per campaign (a
+second mode always present), sensor direction (line of action, or off the line with sliding
+friction), 7 daily records, onset on day 4 or 5 for spalled campaigns, the spall starting at
+3–6 µm and doubling each day up to 25 µm, its extent 0.1–0.6 of the path of contact. Records
+hold ≥ 30 pinion revolutions (mesh frequency 300–700 Hz). Generated records are cached under
+``/tmp/gw-eval/`` as npz.
+
+Parts (never mixed): ``tune`` = seeds 0–59 (even seeds spalled, odd healthy), used while
+choosing the rule settings; ``held-out`` = seeds 10000–10199 (even spalled, odd healthy), only
+run for the report. ``--quick`` takes the first 12 campaigns of the part.
+
+Methods (rule settings in :data:`METHODS`): the new per-tooth detector (``score`` with the
+default rule); today's MCI rule (``mci_depth``, 0.1 Np floor, warning 4, persistence 2 — with
+its 8-record baseline it could never alarm in 7 days, so it gets 3); FM4, NA4, kurtosis of the
+average, raw kurtosis and per-tooth difference energy with the new whole-record statistic
+(short-campaign baseline + CUSUM: the classic metrics get the same statistics as the new
+detector, so the comparison is of evidence, not of alarm logic).
+
+Measured (2026-11-25, code of branch ``det`` after merging main with ``robust``'s averaging; rule
+settings chosen on ``tune`` = seeds 0–59 of the project's simulator only; a loaded 2-core machine,
+so the held-out parts are smaller than planned: project seeds 10000–10115, 58 + 58 campaigns;
+independent seeds 10000–10039, 20 + 20 campaigns; never looked at while tuning)::
+
+    project simulator, held-out (58 spalled + 58 healthy)
+    method                    ≤onset    ≤+1    ≤+2  never median  exact   only   FA/1k healthy w/ FA
+    new per-tooth (score)        84%    95%    95%     3%    0.0    79%    53%    2.10      7/58
+    today's MCI rule              0%    79%    90%    10%    1.0    88%    79%    0.25      0/58
+    FM4                          93%    98%    98%     2%    0.0                   8.24      5/58
+    NA4                          91%   100%   100%     0%    0.0                   6.59      4/58
+    kurtosis                     76%    91%    93%     7%    0.0                   9.88      6/58
+    raw kurtosis                 57%    66%    71%    28%    0.0                  80.72     43/58
+    diff energy                  98%    98%    98%     2%    0.0    41%     3%   13.31     57/58
+    new detector earlier than every classic metric: 0 %; later than the best classic one: 16 %
+
+    independent generator, held-out (20 spalled + 20 healthy)
+    new per-tooth (score)         0%    15%    30%    55%    2.0    15%    10%    0.98      0/20
+    today's MCI rule              0%     0%    10%    85%    2.0     5%     5%    0.16      0/20
+    FM4                          20%    40%    50%    35%    1.0                   4.78      1/20
+    NA4                          20%    35%    50%    35%    1.0                   4.78      1/20
+    kurtosis                      0%     0%    25%    45%    3.0                   9.57      2/20
+    raw kurtosis                  0%     0%    15%    70%    2.5                   0.00      0/20
+    diff energy                  90%    95%   100%     0%    0.0    30%     5%   23.65     19/20
+
+The issue's targets are NOT met: on the project's simulator the per-tooth detector alarms on
+the onset day in 84 % and by the next day in 95 % (targets 50 % and 95 %: met), but names the
+exact tooth in 79 % (target 95 %; the misses are mostly the neighbour of the spalled tooth, whose
+score rises with it), opens an alarm in 7 of 58 healthy campaigns (target 0; teeth with a steady
+manufacturing well whose score moves with the day's operating conditions), and is never earlier
+than FM4/NA4, which catch this simulator's spall on the onset day too. On the independent
+generator every method is weak (its pits are small on the face); the per-tooth detector is
+later than FM4/NA4 there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import sys
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+CACHE = Path("/tmp/gw-eval")
+DAYS = 7
+PARTS = {"tune": range(0, 60), "held-out": range(10000, 10200)}
+GLITCH_LEVEL = 20.0
+
+
+def _parameters() -> Any:
+    from gearwatch.floor.results import AnalysisParameters
+
+    return AnalysisParameters()  # the defaults: exactly what the replay path runs
+
+
+PARAMETERS = _parameters()
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    seed: int
+    spalled: bool
+    pinion_teeth: int
+    gear_teeth: int
+    contact_ratio: float
+    noise_factor: float
+    gain_step_day: int
+    gain_factor: float
+    direction: str
+    onset_day: int | None
+    spall_tooth: int | None
+    spall_depth0_um: float
+    spall_extent_fraction: float
+    modes: tuple[tuple[float, float, float], ...]
+    mesh_hz: float
+
+    def condition(self) -> dict[str, str]:
+        """Bins of the conditions, for the per-condition rows."""
+        return {
+            "contact ratio": "1.3–1.6" if self.contact_ratio < 1.6 else "1.6–2.0",
+            "pinion teeth": "13–30" if self.pinion_teeth <= 30 else "31–80",
+            "noise/signal": "0.3–1" if self.noise_factor < 1.0 else "1–3",
+            "spall extent": (
+                "<0.35 path" if self.spall_extent_fraction < 0.35 else "≥0.35 path"
+            ) if self.spalled else "healthy",
+            "sensor": self.direction,
+        }
+
+
+def draw_spec(seed: int) -> CampaignSpec:
+    rng = np.random.default_rng([seed, 7919])
+    spalled = seed % 2 == 0
+    z1 = int(rng.integers(13, 81))
+    z2 = max(z1 + 1, round(z1 * rng.uniform(1.05, 3.5)))
+    z2 = min(z2, 160)
+    onset = int(rng.integers(4, 6)) if spalled else None
+    modes = (
+        (float(rng.uniform(1500, 3500)), float(rng.uniform(0.02, 0.06)), float(rng.uniform(0.003, 0.01))),
+        (float(rng.uniform(3500, 7500)), float(rng.uniform(0.02, 0.06)), float(rng.uniform(0.003, 0.01))),
+    )
+    return CampaignSpec(
+        seed=seed,
+        spalled=spalled,
+        pinion_teeth=z1,
+        gear_teeth=z2,
+        contact_ratio=float(rng.uniform(1.3, 2.0)),
+        noise_factor=float(np.exp(rng.uniform(np.log(0.3), np.log(3.0)))),
+        gain_step_day=int(rng.integers(2, DAYS + 1)),
+        gain_factor=float(np.exp(rng.uniform(np.log(0.5), np.log(2.0)))),
+        direction="line_of_action" if rng.uniform() < 0.7 else "off_line",
+        onset_day=onset,
+        spall_tooth=int(rng.integers(1, z1 + 1)) if spalled else None,
+        spall_depth0_um=float(rng.uniform(3.0, 6.0)),
+        spall_extent_fraction=float(rng.uniform(0.1, 0.6)),
+        modes=modes,
+        mesh_hz=float(rng.uniform(300, 700)),
+    )
+
+
+# ---------------------------------------------------------------- project simulator
+
+
+def _project_geometry(z1: int, z2: int, contact_ratio: float) -> tuple[float, float, float]:
+    """(pressure angle, addendum coefficient, achieved contact ratio) closest to the target."""
+    from physics.config import GearPairModel, Geometry
+    from physics.simulator import model_geometry
+
+    best: tuple[float, float, float, float] | None = None
+    for pressure in np.arange(14.5, 28.01, 0.5):
+        for addendum in np.arange(0.6, 1.41, 0.05):
+            try:
+                model = GearPairModel(geometry=Geometry(
+                    pinion_teeth=z1, gear_teeth=z2, pressure_angle_deg=float(pressure),
+                    addendum_coefficient=float(addendum), dedendum_coefficient=float(addendum) + 0.25,
+                    module_mm=200.0 / z1,
+                ))
+                achieved = model_geometry(model).contact_ratio
+            except ValueError:
+                continue
+            error = abs(achieved - contact_ratio)
+            if best is None or error < best[0]:
+                best = (error, float(pressure), float(addendum), float(achieved))
+    assert best is not None
+    return best[1], best[2], best[3]
+
+
+def project_campaign(spec: CampaignSpec) -> Iterator[tuple[dict[str, np.ndarray], float, float, dict[str, Any]]]:
+    """Yield (channels, sample rate, tooth1 angle, truth) per day from the project's simulator."""
+    from physics.config import (
+        Deviations,
+        GearPairModel,
+        Geometry,
+        Mesh,
+        Sensor,
+        Spall,
+        StructuralMode,
+        WheelBody,
+    )
+    from physics.simulator import model_geometry, simulate
+
+    rng = np.random.default_rng([spec.seed, 104729])
+    pressure, addendum, _achieved = _project_geometry(spec.pinion_teeth, spec.gear_teeth, spec.contact_ratio)
+    geometry = Geometry(
+        pinion_teeth=spec.pinion_teeth, gear_teeth=spec.gear_teeth, pressure_angle_deg=pressure,
+        addendum_coefficient=addendum, dedendum_coefficient=addendum + 0.25,
+        module_mm=200.0 / spec.pinion_teeth,
+    )
+    off_line = spec.direction == "off_line"
+    base = GearPairModel(
+        geometry=geometry,
+        mesh=Mesh(friction_coefficient=0.06 if off_line else 0.0),
+        pinion=WheelBody(bearing_radial_stiffness_ratio=0.6 if off_line else 1.0,
+                         bearing_principal_axis_deg=30.0 if off_line else 0.0),
+    )
+    path_mm = model_geometry(base).path_length_m * 1e3
+    rpm = spec.mesh_hz * 60.0 / spec.pinion_teeth
+    seconds = max(1.0, 30.0 * 60.0 / rpm + 0.1)
+    pitch = np.round(rng.normal(0.0, 0.25, spec.pinion_teeth), 3)
+    gear_pitch = np.round(rng.normal(0.0, 0.25, spec.gear_teeth), 3)
+    deviations = Deviations(
+        pinion_tip_relief_um=6.0, pinion_tip_relief_length_mm=0.2 * path_mm,
+        gear_tip_relief_um=6.0, gear_tip_relief_length_mm=0.2 * path_mm,
+        pinion_pitch_errors_um=[float(v) for v in pitch],
+        gear_pitch_errors_um=[float(v) for v in gear_pitch],
+        pinion_eccentricity_um=float(rng.uniform(3, 12)),
+        pinion_eccentricity_phase_deg=float(rng.uniform(0, 360)),
+        gear_eccentricity_um=float(rng.uniform(3, 12)),
+        gear_eccentricity_phase_deg=float(rng.uniform(0, 360)),
+    )
+    modes = [StructuralMode(f, z, g) for f, z, g in spec.modes]
+    sensor = Sensor(name="acc", direction="off_line" if off_line else "line_of_action",
+                    noise_rms_m_s2=0.0, modes=modes)
+    base = base.replace(deviations=deviations, sensors=[sensor])
+    base = base.replace(operating=dataclasses.replace(base.operating, speed_rpm=rpm))
+    clean = simulate(base, seconds=min(seconds, 0.5), seed=None)
+    signal_rms = float(np.std(clean.channels["acc"]))
+    noise = spec.noise_factor * signal_rms
+    depth = spec.spall_depth0_um
+    for day in range(1, DAYS + 1):
+        load = 200.0 * float(np.clip(1 + rng.normal(0, 0.05), 0.9, 1.1))
+        speed = rpm * float(np.clip(1 + rng.normal(0, 0.025), 0.95, 1.05))
+        drift = float(rng.uniform(-0.04, 0.04))
+        spalls = []
+        truth: dict[str, Any] = {"day": day, "spall_depth_um": 0.0}
+        if spec.spalled and spec.onset_day is not None and day >= spec.onset_day:
+            k = day - spec.onset_day
+            d = min(depth * 2.0**k, 25.0)
+            extent = spec.spall_extent_fraction * path_mm
+            spalls = [Spall(tooth=int(spec.spall_tooth or 1), depth_um=d, profile_start_mm=-0.6 * extent,
+                            profile_extent_mm=extent, face_start_mm=0.25 * geometry.face_width_mm,
+                            face_width_mm=0.5 * geometry.face_width_mm)]
+            truth["spall_depth_um"] = d
+        model = base.replace(
+            operating=dataclasses.replace(base.operating, speed_rpm=speed, load_torque_nm=load,
+                                          speed_drift_fraction=drift),
+            deviations=dataclasses.replace(deviations, spalls=spalls),
+            sensors=[dataclasses.replace(sensor, noise_rms_m_s2=noise)],
+        )
+        result = simulate(model, seconds=seconds, seed=int(rng.integers(0, 2**31 - 1)))
+        channels = {name: np.asarray(v, dtype=np.float64) for name, v in result.channels.items()}
+        yield channels, result.sample_rate_hz, float(result.tooth1_pitch_angle_deg % 360.0), truth
+
+
+def _impair(spec: CampaignSpec, day: int, channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Gain step and glitch samples, applied to the accelerometer after generation."""
+    rng = np.random.default_rng([spec.seed, day, 31337])
+    acc = channels["acc"].copy()
+    if day >= spec.gain_step_day:
+        acc *= spec.gain_factor
+    if rng.uniform() < 0.3:
+        rms = float(np.std(acc))
+        for index in rng.integers(0, acc.size, int(rng.integers(1, 4))):
+            acc[index] = float(rng.choice([-1.0, 1.0])) * GLITCH_LEVEL * rms
+    return {**channels, "acc": acc}
+
+
+def independent_campaign(spec: CampaignSpec) -> Iterator[tuple[dict[str, np.ndarray], float, float, dict[str, Any]]]:
+    """The same, from engineer indep's generator (``physics.independent.random_campaign``).
+
+    Its own randomised conditions (docs/independent-simulator.md: contact ratio 1.3–2.0, 13–80
+    teeth, ratio 1–3.5, noise 0.3–3×, drift up to 20 %, load ±10 %, speed ±5 %, gain step in half
+    the campaigns, 3e38 glitches on ~15 % of the days, 2–4 line modes with delay, sensor angle);
+    the spall's tooth, onset (forced to day 4 or 5 like the project's part) and growth are its
+    own. ``spec.spalled`` False gives its healthy twin. Records hold ~30 pinion revolutions.
+    """
+    from physics.independent import generate_record, random_campaign, random_model
+
+    rpm = random_model(spec.seed).operating.speed_rpm
+    seconds = float(np.clip(30.0 * 60.0 / rpm + 0.1, 1.0, 6.5))
+    plan = random_campaign(spec.seed, days=DAYS, spalled=spec.spalled,
+                           onset_day=spec.onset_day or 4, seconds=seconds)
+    for day in plan:
+        record = generate_record(day.model, seed=day.seed)
+        truth = dict(day.changes)
+        derived = record.truth.get("derived", {})
+        spall = day.model.spalls[0] if day.model.spalls else None
+        truth.update({
+            "day": day.day,
+            "spall_depth_um": float(spall.depth_um) if spall else 0.0,
+            "spec": {
+                "pinion_teeth": int(day.model.geometry.pinion_teeth),
+                "gear_teeth": int(day.model.geometry.gear_teeth),
+                "contact_ratio": float(derived.get("contact_ratio", day.model.geometry.contact_ratio or 0.0)),
+                "noise_factor": float(day.model.acquisition.noise_to_signal),
+                "spall_tooth": int(spall.tooth) if spall else None,
+            },
+        })
+        campaign = record.campaign()
+        yield ({k: np.asarray(v, dtype=np.float64) for k, v in record.channels.items()},
+               float(record.sample_rate_hz), float(campaign.rig.tooth1_pitch_angle_deg),
+               json.loads(json.dumps(truth, default=float)))
+
+
+GENERATORS: dict[str, Callable[[CampaignSpec], Iterator[Any]]] = {
+    "project": project_campaign,
+    "independent": independent_campaign,
+}
+
+
+def campaign_records(generator: str, spec: CampaignSpec) -> list[tuple[dict[str, np.ndarray], float, float, dict[str, Any]]]:
+    """Every day of a campaign, from the npz cache when there (generated otherwise)."""
+    folder = CACHE / generator
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"seed{spec.seed}.npz"
+    if path.exists():
+        data = np.load(path, allow_pickle=False)
+        meta = json.loads(str(data["meta"]))
+        return [
+            ({name: data[f"d{day}_{name}"] for name in meta["channels"]}, meta["fs"][day - 1],
+             meta["tooth1"][day - 1], meta["truth"][day - 1])
+            for day in range(1, DAYS + 1)
+        ]
+    days = list(GENERATORS[generator](spec))
+    arrays: dict[str, Any] = {}
+    for day, (channels, _, _, _) in enumerate(days, start=1):
+        for name, values in channels.items():
+            arrays[f"d{day}_{name}"] = values.astype(np.float32) if name == "acc" else values
+    meta = {"channels": list(days[0][0]), "fs": [d[1] for d in days], "tooth1": [d[2] for d in days],
+            "truth": [d[3] for d in days]}
+    np.savez(path, meta=json.dumps(meta), **arrays)
+    return days
+
+
+# ---------------------------------------------------------------- analysis and alarms
+
+
+def analyse_campaign(generator: str, spec: CampaignSpec) -> dict[str, Any]:
+    """Per-day per-tooth and whole-record values of one campaign (pipeline in-process)."""
+    from gearwatch.floor.campaign import (
+        Campaign,
+        ChannelConfig,
+        RecordData,
+        RigConfig,
+        TachometerConfig,
+    )
+    from gearwatch.floor.errors import RecordRejected
+    from gearwatch.usecases.analyze import analyze_record
+
+    days = campaign_records(generator, spec)
+    if generator == "independent":
+        # the generator drew its own rig: describe the campaign by it (spalled days carry the tooth)
+        drawn = dict(days[-1][3]["spec"])
+        if not spec.spalled:
+            drawn["spall_tooth"] = None
+        spec = dataclasses.replace(spec, direction="angled", gain_step_day=DAYS + 1,
+                                   spall_extent_fraction=0.2, **drawn)
+    out: dict[str, Any] = {"spec": dataclasses.asdict(spec), "days": []}
+    for day, (channels, fs, tooth1, truth) in enumerate(days, start=1):
+        campaign = Campaign(
+            id="bench", description="", sample_rate_hz=fs,
+            rig=RigConfig(id="rig", pinion_teeth=spec.pinion_teeth, gear_teeth=spec.gear_teeth,
+                          tooth1_pitch_angle_deg=tooth1),
+            tachometer=TachometerConfig(channel="tach"),
+            channels=(ChannelConfig("acc", "accelerometer"), ChannelConfig("tach", "tachometer")),
+        )
+        if generator == "project":  # the independent generator has its own artefacts
+            channels = _impair(spec, day, channels)
+        record = RecordData(channels=channels, sample_rate_hz=fs)
+        try:
+            analysis = analyze_record(record, campaign, PARAMETERS, input_sha256="0" * 64)
+        except RecordRejected as error:
+            out["days"].append({"day": day, "rejected": str(error), "truth": truth})
+            continue
+        channel = analysis.channels[0]
+        out["days"].append({
+            "day": day,
+            "truth": truth,
+            "teeth": {name: [getattr(t, name) for t in channel.teeth]
+                      for name in ("mci_depth", "mci_depth_se", "score", "diff_energy")},
+            "metrics": channel.metrics,
+            "worst_tooth": channel.worst_tooth,
+        })
+    return out
+
+
+def _job(args: tuple[str, int]) -> dict[str, Any]:
+    generator, seed = args
+    spec = draw_spec(seed)
+    start = time.process_time()
+    try:
+        result = analyse_campaign(generator, spec)
+    except Exception as error:  # a generator refusing a drawn geometry: counted, not fatal
+        return {"spec": dataclasses.asdict(spec), "error": f"{type(error).__name__}: {error}",
+                "days": [], "cpu_s": time.process_time() - start}
+    result["cpu_s"] = time.process_time() - start
+    return result
+
+
+def _generate(args: tuple[str, int]) -> None:
+    generator, seed = args
+    try:
+        campaign_records(generator, draw_spec(seed))
+    except Exception as error:
+        print(f"seed {seed}: {type(error).__name__}: {error}", file=sys.stderr)
+
+
+METHODS: dict[str, tuple[str, bool, dict[str, Any]]] = {}
+"""name → (indicator, per tooth, RuleSettings keyword arguments); filled by :func:`_methods`."""
+
+
+def _methods() -> dict[str, tuple[str, bool, dict[str, Any]]]:
+    from detection.default_rules import DEFAULT_RULES
+
+    classic = dict(DEFAULT_RULES["fm4"])
+    return {
+        "new per-tooth (score)": ("score", True, dict(DEFAULT_RULES["score"])),
+        "today's MCI rule": ("mci_depth", True, {"spread_floor_abs": 0.1, "baseline_records": 3}),
+        "FM4": ("fm4", False, classic),
+        "NA4": ("na4", False, classic),
+        "kurtosis": ("kurtosis", False, classic),
+        "raw kurtosis": ("raw_kurtosis", False, classic),
+        "diff energy": ("diff_energy", True, classic),
+    }
+
+
+def evaluate(result: dict[str, Any], indicator: str, per_tooth: bool, settings: dict[str, Any]) -> list[tuple[int, int, str, float]]:
+    """Alarm openings (day, tooth, evidence, score in baseline units) of one method on one
+    campaign (tooth 0: whole record)."""
+    from detection.alarms import RuleSettings, TrackState, step
+
+    rule = RuleSettings(indicator, **settings)
+    teeth = result["spec"]["pinion_teeth"] if per_tooth else 1
+    states = [TrackState() for _ in range(teeth)]
+    openings: list[tuple[int, int, str, float]] = []
+    for day in result["days"]:
+        if "rejected" in day:
+            continue
+        values = day["teeth"][indicator] if per_tooth else [day["metrics"][indicator]]
+        evaluations = [step(state, float(value), rule) for state, value in zip(states, values, strict=True)]
+        for index, evaluation in enumerate(evaluations):
+            states[index] = evaluation.state
+            for transition in evaluation.transitions:
+                if transition.opened:
+                    openings.append((day["day"], index + 1 if per_tooth else 0, transition.evidence,
+                                     transition.score))
+    return openings
+
+
+def report(results: list[dict[str, Any]]) -> str:
+    methods = _methods()
+    lines: list[str] = []
+    failed = [r for r in results if "error" in r]
+    for r in failed:
+        lines.append(f"seed {r['spec']['seed']} not generated: {r['error']}")
+    results = [r for r in results if "error" not in r]
+    spalled = [r for r in results if r["spec"]["spalled"]]
+    healthy = [r for r in results if not r["spec"]["spalled"]]
+    rejected = sum("rejected" in d for r in results for d in r["days"])
+    lines.append(f"{len(spalled)} spalled + {len(healthy)} healthy campaigns, {DAYS} days each; "
+                 f"{rejected} rejected records")
+    first_days: dict[str, list[float]] = {}
+    header = (f"{'method':24s} {'≤onset':>7s} {'≤+1':>6s} {'≤+2':>6s} {'never':>6s} "
+              f"{'median':>6s} {'exact':>6s} {'only':>6s} {'FA/1k':>7s} {'healthy w/ FA':>13s}")
+    lines.append(header)
+    for name, (indicator, per_tooth, settings) in methods.items():
+        rel: list[float] = []
+        exact = strict = 0
+        false_count = 0
+        exposure = 0
+        healthy_with_fa = 0
+        for r in results:
+            spec = r["spec"]
+            openings = evaluate(r, indicator, per_tooth, settings)
+            units = spec["pinion_teeth"] if per_tooth else 1
+            scored_days = sum("rejected" not in d for d in r["days"])
+            onset = spec["onset_day"]
+            if spec["spalled"]:
+                exposure += units * (onset - 1) + (units - 1) * (DAYS - onset + 1) if per_tooth else onset - 1
+                right = [o for o in openings if o[0] >= onset and (not per_tooth or o[1] == spec["spall_tooth"])]
+                false_count += len([o for o in openings if o not in right])
+                any_after = [o for o in openings if o[0] >= onset]
+                if any_after:
+                    first = min(o[0] for o in any_after)
+                    rel.append(first - onset)
+                    first_day = [o for o in any_after if o[0] == first]
+                    if per_tooth and max(first_day, key=lambda o: o[3])[1] == spec["spall_tooth"]:
+                        exact += 1
+                    if per_tooth and {o[1] for o in first_day} == {spec["spall_tooth"]}:
+                        strict += 1
+                else:
+                    rel.append(math.inf)
+            else:
+                exposure += units * scored_days
+                false_count += len(openings)
+                healthy_with_fa += bool(openings)
+        first_days[name] = rel
+        arr = np.asarray(rel)
+        n = max(arr.size, 1)
+        finite = arr[np.isfinite(arr)]
+        lines.append(
+            f"{name:24s} {np.mean(arr <= 0):7.0%} {np.mean(arr <= 1):6.0%} {np.mean(arr <= 2):6.0%} "
+            f"{np.mean(~np.isfinite(arr)):6.0%} {np.median(finite) if finite.size else math.nan:6.1f} "
+            f"{(exact / n if per_tooth else math.nan):6.0%} {(strict / n if per_tooth else math.nan):6.0%} "
+            f"{1000 * false_count / max(exposure, 1):7.2f} "
+            f"{healthy_with_fa:6d}/{len(healthy):<6d}"
+        )
+    new = np.asarray(first_days["new per-tooth (score)"])
+    classic = np.vstack([first_days[m] for m in methods if m not in ("new per-tooth (score)", "today's MCI rule")])
+    best_classic = classic.min(axis=0)
+    earlier = np.mean((new < best_classic) | (~np.isfinite(best_classic) & np.isfinite(new)))
+    later = np.mean(new > best_classic)
+    lines.append(f"new detector earlier than every classic metric: {earlier:.0%} of spalled campaigns; "
+                 f"later than the best classic one: {later:.0%}")
+    lines.append("first alarm day relative to onset = first day ≥ onset on which the method opened "
+                 "any alarm (warning or alarm); exact = the highest-scoring alarm opened that day is "
+                 "on the spalled tooth; only = that day's alarms are on the spalled tooth alone; "
+                 "FA/1k = alarms opened on healthy tooth-days (per-tooth: healthy campaigns, days "
+                 "before onset, other teeth) or record-days (whole-record) per 1,000; healthy w/ FA "
+                 "= healthy campaigns with any alarm opened")
+    # per condition, the new detector
+    lines.append("")
+    lines.append("new per-tooth detector per condition (spalled: ≤onset / ≤+1 / exact; healthy: FA campaigns)")
+    indicator, per_tooth, settings = methods["new per-tooth (score)"]
+    def condition(r: dict[str, Any]) -> dict[str, str]:
+        return CampaignSpec(**r["spec"]).condition()
+
+    keys = sorted({k for r in results for k in condition(r)})
+    for key in keys:
+        bins: dict[str, list[dict[str, Any]]] = {}
+        for r in results:
+            bins.setdefault(condition(r)[key], []).append(r)
+        for value, members in sorted(bins.items()):
+            sp = [m for m in members if m["spec"]["spalled"]]
+            he = [m for m in members if not m["spec"]["spalled"]]
+            rels, ex = [], 0
+            for m in sp:
+                openings = evaluate(m, indicator, per_tooth, settings)
+                after = [o for o in openings if o[0] >= m["spec"]["onset_day"]]
+                first = min((o[0] for o in after), default=None)
+                rels.append(math.inf if first is None else first - m["spec"]["onset_day"])
+                ex += first is not None and max((o for o in after if o[0] == first), key=lambda o: o[3])[1] == m["spec"]["spall_tooth"]
+            fa = sum(bool(evaluate(m, indicator, per_tooth, settings)) for m in he)
+            r_arr = np.asarray(rels) if rels else np.asarray([math.nan])
+            lines.append(f"  {key:14s} {value:16s} spalled {len(sp):3d}: {np.mean(r_arr <= 0):4.0%} / "
+                         f"{np.mean(r_arr <= 1):4.0%} / {ex / max(len(sp), 1):4.0%}   healthy {len(he):3d}: {fa} with FA")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--part", choices=list(PARTS), default="tune")
+    parser.add_argument("--generator", choices=["project", "independent", "both"], default="project")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--limit", type=int, default=None, help="first N campaigns of the part")
+    parser.add_argument("--generate-only", action="store_true",
+                        help="only generate and cache the records (no analysis, no table)")
+    parser.add_argument("--from-results", action="store_true",
+                        help="re-evaluate the alarm rules on the saved per-record results")
+    args = parser.parse_args()
+    seeds = list(PARTS[args.part])
+    if args.quick:
+        seeds = seeds[:12]
+    if args.limit:
+        seeds = seeds[: args.limit]
+    generators = ["project", "independent"] if args.generator == "both" else [args.generator]
+    for generator in generators:
+        if generator not in GENERATORS:
+            print(f"generator {generator!r} not available", file=sys.stderr)
+            continue
+        start = time.perf_counter()
+        saved = CACHE / f"results-{generator}-{args.part}.json"
+        jobs = [(generator, seed) for seed in seeds]
+        if args.generate_only:
+            with ProcessPoolExecutor(args.workers) as pool:
+                list(pool.map(_generate, jobs))
+            print(f"generated {len(jobs)} campaigns in {time.perf_counter() - start:.0f} s")
+            continue
+        if args.from_results:
+            results = [r for r in json.loads(saved.read_text()) if r["spec"]["seed"] in set(seeds)]
+            if generator == "project":
+                for r in results:
+                    r["spec"] = dataclasses.asdict(draw_spec(r["spec"]["seed"]))
+        elif args.workers > 1:
+            with ProcessPoolExecutor(args.workers) as pool:
+                results = list(pool.map(_job, jobs))
+        else:
+            results = [_job(job) for job in jobs]
+        if not args.from_results:
+            saved.write_text(json.dumps(results, default=float))
+        print(f"== generator {generator}, part {args.part} (seeds {seeds[0]}–{seeds[-1]}), "
+              f"{time.perf_counter() - start:.0f} s wall, "
+              f"{sum(r['cpu_s'] for r in results):.0f} s CPU in workers")
+        print(report(results))
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    main()

@@ -1,0 +1,363 @@
+"""Benchmark: tach-less campaigns against the same campaigns WITH the tachometer (issue 11).
+
+    nice -n 10 .venv/bin/python benchmarks/bench_tachless.py [--seeds 1000-1019] [--days 8]
+        [--seconds 4] [--cache .bench-cache/tachless] [--simulator physics|indep] [--json OUT]
+
+Each seed draws one campaign: tooth counts 13–80 on both wheels (module scaled to a fixed centre
+distance, 25° pressure angle below 18 teeth so the small wheel is not undercut), the speed
+drifting by up to ±3 % within a record (and ±1 % from day to day), sensor noise 0.3–3 × the
+signal's RMS (log-uniform per campaign, ±15 % per day), a spall on a random pinion tooth from a
+random day after the baseline that grows daily (:func:`physics.campaign.campaign_plan`). Records are
+simulated once and cached (noise is added afterwards, so the cache holds the noise-free physics).
+
+Both chains run :func:`gearwatch.usecases.analyze.analyze_record` day by day:
+
+* **tach** — the manifest with its tachometer;
+* **tach-less** — the same records, the tach channel *removed* from the manifest; each day is
+  placed in the campaign's tooth frame against the reference folded so far
+  (:func:`gearwatch.usecases.tachless.fold_reference`, exactly what :mod:`gearwatch.usecases.ingest_file` stores).
+
+Scored (the tach is used only to score):
+
+* **alignment** per tach-less day after the first: *right* when its campaign-frame pinion average
+  sits where the tach says (the shift between its campaign-frame and tach-frame averages equals
+  the reference day's within half a mesh period), *refused*, or *wrong*;
+* **first alarm day** and **alarmed tooth** of one fixed bench rule on ``mci_depth``
+  (:class:`detection.alarms.RuleSettings`: baseline from the first 4 days, warning at 4 robust
+  spreads, persistence 2) in both chains; the tach-less tooth is mapped to the tach numbering
+  through the reference day (both chains' averages of that day, matched over all sample shifts).
+
+Seeds 1000–1009 were used while choosing the refusal thresholds of :mod:`dsp.toothframe`
+(development); the table reports them apart from the held-out seeds 2000–2019.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from detection.alarms import RuleSettings, TrackState, step
+from dsp.teeth import tooth_at_angle
+from gearwatch.floor.campaign import (
+    Campaign,
+    ChannelConfig,
+    RecordData,
+    RigConfig,
+    TachometerConfig,
+)
+from gearwatch.floor.results import AnalysisParameters, RecordAnalysis, ToothFrameReference
+from gearwatch.usecases.analyze import analyze_record
+from gearwatch.usecases.tachless import fold_reference
+
+DEV_SEEDS = range(1000, 1010)
+HELD_OUT_SEEDS = range(2000, 2020)
+BASELINE_DAYS = 4
+NOMINAL_RPM = 1000.0
+"""The simulator's nominal pinion speed, given as ``[rig] nominal_pinion_rpm`` (``--no-hint``: not)."""
+RULE = RuleSettings("mci_depth", baseline_records=BASELINE_DAYS, spread_floor_abs=0.1, persistence=2)
+
+
+@dataclasses.dataclass(frozen=True)
+class Spec:
+    seed: int
+    pinion_teeth: int
+    gear_teeth: int
+    noise_ratio: float
+    spall_tooth: int
+    onset_day: int
+    days: int
+
+
+def campaign_spec(seed: int, days: int) -> Spec:
+    rng = np.random.default_rng(seed)
+    zp, zg = (int(v) for v in rng.integers(13, 81, size=2))
+    return Spec(
+        seed=seed, pinion_teeth=zp, gear_teeth=zg,
+        noise_ratio=float(np.exp(rng.uniform(np.log(0.3), np.log(3.0)))),
+        spall_tooth=int(rng.integers(1, zp + 1)),
+        onset_day=int(rng.integers(BASELINE_DAYS + 1, days)),
+        days=days,
+    )
+
+
+def _simulate_days(spec: Spec, seconds: float, cache: Path) -> list[dict[str, np.ndarray]]:
+    """Noise-free acc + tach per day, cached as npz."""
+    from physics.campaign import campaign_plan
+    from physics.config import GearPairModel
+    from physics.simulator import simulate
+
+    files = [cache / f"seed{spec.seed}-{spec.days}d-{seconds:g}s-day{d + 1:02d}.npz" for d in range(spec.days)]
+    if all(f.exists() for f in files):
+        return [dict(np.load(f)) for f in files]
+    base = GearPairModel()
+    geometry = dataclasses.replace(
+        base.geometry, pinion_teeth=spec.pinion_teeth, gear_teeth=spec.gear_teeth,
+        module_mm=round(10.0 * 41 / (spec.pinion_teeth + spec.gear_teeth), 3),
+        pressure_angle_deg=25.0 if min(spec.pinion_teeth, spec.gear_teeth) < 18 else 20.0,
+    )
+    base = base.replace(
+        geometry=geometry,
+        sensors=[dataclasses.replace(s, noise_rms_m_s2=0.0) for s in base.sensors],
+    )
+    plans = campaign_plan(spec.days, spec.spall_tooth, spec.onset_day, spec.seed, base_model=base)
+    rng = np.random.default_rng(spec.seed + 7)
+    cache.mkdir(parents=True, exist_ok=True)
+    out = []
+    for plan, path in zip(plans, files, strict=True):
+        operating = dataclasses.replace(
+            plan.model.operating, speed_drift_fraction=float(rng.uniform(-0.01, 0.01))
+        )
+        result = simulate(plan.model.replace(operating=operating), seconds=seconds, seed=plan.seed)
+        acc_name = plan.model.sensors[0].name
+        day = {
+            "acc": result.channels[acc_name].astype(np.float32),
+            "tach": result.channels[plan.model.tachometer.name].astype(np.float32),
+            "fs": np.array(result.sample_rate_hz),
+            "tooth1": np.array(result.tooth1_pitch_angle_deg),
+        }
+        np.savez(path, **day)
+        out.append(day)
+    return out
+
+
+def _independent_days(spec: Spec, seconds: float, cache: Path) -> list[dict[str, np.ndarray]]:
+    """The same campaign drawn by the independent generator (``physics.independent``, engineer
+    indep): its own rig for the seed (tooth counts as the spec), index and profile errors, pits
+    growing 4 → 25 µm from the onset day; noise given to it relative to the signal (so not
+    added again: ``noise_ratio`` is passed as its ``noise_to_signal``), in-record drift ≤ 5 %."""
+    from physics.independent import Spall, campaign_days, generate_record, random_model
+
+    files = [cache / f"indep{spec.seed}-{spec.days}d-{seconds:g}s-day{d + 1:02d}.npz" for d in range(spec.days)]
+    if all(f.exists() for f in files):
+        return [dict(np.load(f)) for f in files]
+    rng = np.random.default_rng(spec.seed + 3)
+    base = random_model(spec.seed, pinion_teeth=spec.pinion_teeth, gear_teeth=spec.gear_teeth,
+                        noise_to_signal=spec.noise_ratio, seconds=seconds,
+                        speed_drift_fraction=float(rng.uniform(0.0, 0.05)))
+    plan = campaign_days(base, spec.days, onset_day=spec.onset_day, spall=Spall(tooth=spec.spall_tooth),
+                         face_fractions=(0.15, 0.25, 0.4, 0.6), extents=(0.15, 0.25, 0.4, 0.55),
+                         speed_jitter=0.02, seed=spec.seed)
+    cache.mkdir(parents=True, exist_ok=True)
+    out = []
+    for day, path in zip(plan, files, strict=True):
+        record = generate_record(day.model, seed=day.seed)
+        campaign = record.campaign()
+        entry = {
+            "acc": record.channels["acc"].astype(np.float32),
+            "tach": record.channels["tach"].astype(np.float32),
+            "fs": np.array(record.sample_rate_hz),
+            "tooth1": np.array(campaign.rig.tooth1_pitch_angle_deg),
+            "rpm": np.array(base.operating.speed_rpm),
+            "noise_added": np.array(1.0),
+        }
+        np.savez(path, **entry)
+        out.append(entry)
+    return out
+
+
+def _campaigns(spec: Spec, tooth1: float, fs: float, hint: bool = True,
+               rpm: float = 0.0) -> tuple[Campaign, Campaign]:
+    rig = RigConfig("bench", spec.pinion_teeth, spec.gear_teeth, tooth1_pitch_angle_deg=tooth1 % 360.0,
+                    nominal_pinion_rpm=(rpm or NOMINAL_RPM) if hint else None)
+    acc = ChannelConfig("acc", "accelerometer")
+    with_tach = Campaign(f"tach-{spec.seed}", "", rig, fs, TachometerConfig("tach"),
+                         (acc, ChannelConfig("tach", "tachometer")))
+    without = Campaign(f"tachless-{spec.seed}", "", rig, fs, None, (acc,))
+    return with_tach, without
+
+
+def _first_alarm(day_teeth: list[dict[int, float] | None]) -> tuple[int | None, int | None]:
+    """(first day with an open warning/alarm on any tooth, that tooth) under :data:`RULE`."""
+    states: dict[int, TrackState] = {}
+    for day, teeth in enumerate(day_teeth, start=1):
+        if teeth is None:
+            continue
+        raised = []
+        for tooth, value in teeth.items():
+            evaluation = step(states.get(tooth, TrackState()), value, RULE)
+            states[tooth] = evaluation.state
+            if evaluation.state.alarm_state is not None:
+                raised.append((value, tooth))
+        if raised:
+            return day, max(raised)[1]
+    return None, None
+
+
+def _delay_between(a: np.ndarray, b: np.ndarray) -> int:
+    """Sample delay d maximising Σ a[n + d]·b[n] (a is b delayed by d)."""
+    full = np.fft.irfft(np.fft.rfft(a) * np.conj(np.fft.rfft(b)), n=a.size)
+    return int(np.argmax(full))
+
+
+def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
+                 simulator: str = "physics") -> dict[str, Any]:
+    days = (_simulate_days(spec, seconds, cache) if simulator == "physics"
+            else _independent_days(spec, seconds, cache))
+    fs = float(days[0]["fs"])
+    with_tach, without = _campaigns(spec, float(days[0]["tooth1"]), fs, hint,
+                                    float(days[0].get("rpm", 0.0)))
+    params = AnalysisParameters(samples_per_mesh=32)
+    rng = np.random.default_rng(spec.seed + 11)
+    reference: ToothFrameReference | None = None
+    tach_teeth: list[dict[int, float] | None] = []
+    tl_teeth: list[dict[int, float] | None] = []
+    alignment: list[str] = []
+    margins: list[float] = []
+    reference_delay: int | None = None
+    spm = params.samples_per_mesh
+    n = spec.pinion_teeth * spm
+    reasons: list[str] = []
+    for index, day in enumerate(days):
+        acc = day["acc"].astype(np.float64)
+        factor = spec.noise_ratio * float(np.clip(1 + rng.normal(0, 0.15), 0.6, 1.5))
+        if "noise_added" in day:  # the independent generator adds its own
+            factor = 0.0
+        noisy = acc + factor * float(np.std(acc)) * rng.standard_normal(acc.size)
+        record = RecordData({"acc": noisy, "tach": day["tach"].astype(np.float64)}, fs)
+        sha = f"seed{spec.seed}-day{index + 1}"
+        tach_result = analyze_record(record, with_tach, params, input_sha256=sha)
+        tach_teeth.append({t.tooth: t.mci_depth for t in tach_result.channels[0].teeth})
+        tl: RecordAnalysis = analyze_record(
+            RecordData({"acc": noisy}, fs), without, params, input_sha256=sha,
+            tooth_frames={} if reference is None else {"acc": reference},
+        )
+        channel = tl.channels[0]
+        frame = channel.tooth_frame
+        if not channel.teeth:
+            tl_teeth.append(None)
+            alignment.append("refused" if frame.get("kind") == "refused" else "no-angle")
+            reasons.append(frame.get("reason", ""))
+            if "pinion" in frame:
+                margins.append(frame["pinion"]["margin"])
+            continue
+        tl_teeth.append({t.tooth: t.mci_depth for t in channel.teeth})
+        delay = _delay_between(channel.curves["pinion_average"].astype(np.float64),
+                               tach_result.channels[0].curves["pinion_average"].astype(np.float64))
+        if reference_delay is None:
+            reference_delay = delay
+            alignment.append("reference")
+        else:
+            off = (delay - reference_delay + n // 2) % n - n // 2
+            alignment.append("right" if abs(off) < spm / 2 else "wrong")
+            margins.append(frame["pinion"]["margin"])
+        folded = fold_reference(reference, channel, sha)
+        reference = folded or reference
+    tach_day, tach_tooth = _first_alarm(tach_teeth)
+    tl_day, tl_tooth_campaign = _first_alarm(tl_teeth)
+    tl_tooth = None
+    if tl_tooth_campaign is not None and reference_delay is not None:
+        # campaign tooth k's pitch angle (tooth 1 at 0° in a tach-less campaign frame) in the tach
+        # frame: campaign sample m is tach sample m − delay
+        angle = (tl_tooth_campaign - 1) * 360.0 / spec.pinion_teeth - reference_delay * 360.0 / n
+        tl_tooth = tooth_at_angle(angle % 360.0, spec.pinion_teeth, with_tach.rig.tooth1_pitch_angle_deg)
+    return {
+        "seed": spec.seed, "simulator": simulator, "teeth": [spec.pinion_teeth, spec.gear_teeth],
+        "noise_ratio": round(spec.noise_ratio, 2), "spall_tooth": spec.spall_tooth,
+        "onset_day": spec.onset_day, "alignment": alignment, "margins": margins,
+        "tach_first_alarm": [tach_day, tach_tooth], "tachless_first_alarm": [tl_day, tl_tooth],
+        "reasons": [r for r in reasons if r],
+    }
+
+
+def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    days = [a for r in rows for a in r["alignment"] if a not in ("reference",)]
+    after_onset = [a for r in rows for d, a in enumerate(r["alignment"], start=1)
+                   if d >= r["onset_day"] and a != "reference"]
+    right, wrong = days.count("right"), days.count("wrong")
+    refused, no_angle = days.count("refused"), days.count("no-angle")
+    same_day = same_tooth = near_tooth = both_silent = 0
+    for r in rows:
+        (td, tt), (ld, lt) = r["tach_first_alarm"], r["tachless_first_alarm"]
+        if td is None and ld is None:
+            both_silent += 1
+            same_day += 1
+            same_tooth += 1
+            near_tooth += 1
+            continue
+        if td is not None and ld is not None and abs(td - ld) <= 1:
+            same_day += 1
+        if tt is not None and lt is not None:
+            z = r["teeth"][0]
+            distance = min((tt - lt) % z, (lt - tt) % z)
+            same_tooth += distance == 0
+            near_tooth += distance <= 1
+    count = max(1, len(rows))
+    aligned_days = max(1, right + wrong)
+    return {
+        "campaigns": len(rows), "days_scored": len(days), "right": right, "wrong": wrong,
+        "refused": refused, "no_angle": no_angle,
+        "right_or_refused_pct": 100.0 * (right + refused + no_angle) / max(1, len(days)),
+        "wrong_pct_of_aligned": 100.0 * wrong / aligned_days,
+        "first_alarm_within_1_day_pct": 100.0 * same_day / count,
+        "same_tooth_pct": 100.0 * same_tooth / count,
+        "tooth_within_1_pct": 100.0 * near_tooth / count,
+        "both_silent": both_silent,
+        "spalled_days": len(after_onset),
+        "spalled_right": after_onset.count("right"),
+        "spalled_wrong": after_onset.count("wrong"),
+        "spalled_refused": after_onset.count("refused") + after_onset.count("no-angle"),
+    }
+
+
+def _seeds(text: str) -> list[int]:
+    out: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out.extend(range(int(lo), int(hi or lo) + 1))
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seeds", default=None, help="e.g. 2000-2019 (default: dev then held-out)")
+    parser.add_argument("--days", type=int, default=8)
+    parser.add_argument("--seconds", type=float, default=4.0)
+    parser.add_argument("--cache", default=".bench-cache/tachless")
+    parser.add_argument("--json", default=None)
+    parser.add_argument("--no-hint", action="store_true", help="no nominal speed: find it in the spectrum")
+    parser.add_argument("--simulator", choices=("physics", "indep"), default="physics",
+                        help="physics: the project simulator; indep: physics.independent")
+    args = parser.parse_args()
+    groups = ({"seeds": _seeds(args.seeds)} if args.seeds
+              else {"development": list(DEV_SEEDS), "held-out": list(HELD_OUT_SEEDS)})
+    cache = Path(args.cache)
+    report: dict[str, Any] = {}
+    started = time.perf_counter()
+    for name, seeds in groups.items():
+        rows = []
+        for seed in seeds:
+            row = run_campaign(campaign_spec(seed, args.days), args.seconds, cache, not args.no_hint,
+                               args.simulator)
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+        report[name] = {"summary": summarise(rows), "rows": rows}
+    print(f"\n{'set':12s} {'camp':>4s} {'days':>4s} {'right':>5s} {'refused':>7s} {'no angle':>8s} "
+          f"{'wrong':>5s} {'1st alarm ±1 d':>14s} {'same tooth':>10s} {'tooth ±1':>8s} {'both silent':>11s}")
+    for name, block in report.items():
+        s = block["summary"]
+        print(f"{name:12s} {s['campaigns']:4d} {s['days_scored']:4d} {s['right']:5d} {s['refused']:7d} "
+              f"{s['no_angle']:8d} {s['wrong']:5d} {s['first_alarm_within_1_day_pct']:13.0f}% "
+              f"{s['same_tooth_pct']:9.0f}% {s['tooth_within_1_pct']:7.0f}% {s['both_silent']:11d}")
+    for name, block in report.items():
+        s = block["summary"]
+        print(f"{name}: days with the spall: {s['spalled_days']}, right {s['spalled_right']}, "
+              f"refused/no angle {s['spalled_refused']}, wrong {s['spalled_wrong']}")
+    print(f"({time.perf_counter() - started:.0f} s, {os.cpu_count()} cpus)")
+    if args.json:
+        Path(args.json).write_text(json.dumps(report, indent=1), encoding="utf-8")
+    return 0 if not math.isnan(0.0) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
