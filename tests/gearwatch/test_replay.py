@@ -251,7 +251,7 @@ def test_watch_command_ingests_dropped_files_until_interrupted(tmp_path) -> None
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path,
     )
     try:
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + 600  # a bound on a hang on a loaded box, not a speed limit
         engine = sa.create_engine(f"sqlite:///{tmp_path / 'w.db'}")
 
         def records() -> int:
@@ -265,14 +265,16 @@ def test_watch_command_ingests_dropped_files_until_interrupted(tmp_path) -> None
         while records() < 1:
             assert time.monotonic() < deadline and process.poll() is None
             time.sleep(0.2)
-        write_record(folder / "dropped.wav", 1.7)
+        # Dropped as a rig should: written under an ignored name, then renamed (a file written
+        # in place can look settled to the watcher while the writer is descheduled).
+        write_record(folder / "dropped.wav.part", 1.7).rename(folder / "dropped.wav")
         while records() < 2:
             assert time.monotonic() < deadline and process.poll() is None
             time.sleep(0.2)
         engine.dispose()
     finally:
         process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=60)
+        out, err = process.communicate(timeout=300)
     assert process.returncode == 0, err
     assert "day00.wav: accepted" in out and "dropped.wav: accepted" in out
     assert "ingested: 2 accepted" in out

@@ -35,25 +35,27 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
         )
     url = f"http://127.0.0.1:{port}"
     try:
-        for _ in range(300):
+        deadline = time.monotonic() + 300  # a bound on a hang on a loaded box, not a speed limit
+        while True:
             try:
-                if httpx.get(f"{url}/health", timeout=1).status_code == 200:
+                if httpx.get(f"{url}/health", timeout=10).status_code == 200:
                     break
             except httpx.HTTPError:
                 pass
             assert process.poll() is None, (folder / "serve.log").read_text()
+            assert time.monotonic() < deadline, (folder / "serve.log").read_text()
             time.sleep(0.1)
         yield url
     finally:
         os.killpg(process.pid, signal.SIGTERM)
-        process.wait(timeout=30)
+        process.wait(timeout=120)
 
 
 @pytest.mark.parametrize("path", ["/health", "/", "/static/dashboard.js", "/api/v1/records",
                                   "/openapi.json", "/nope"])
 def test_every_answer_has_the_security_headers_and_no_server_header(served: str,
                                                                      path: str) -> None:
-    answer = httpx.get(served + path, timeout=10)
+    answer = httpx.get(served + path, timeout=120)
     headers = answer.headers
     assert "server" not in headers
     assert headers["x-content-type-options"] == "nosniff"
@@ -65,7 +67,7 @@ def test_every_answer_has_the_security_headers_and_no_server_header(served: str,
 
 
 def test_the_api_description_page_gets_the_policy_it_needs(served: str) -> None:
-    answer = httpx.get(served + "/docs", timeout=10)
+    answer = httpx.get(served + "/docs", timeout=120)
     assert answer.status_code == 200 and "server" not in answer.headers
     assert "https://cdn.jsdelivr.net" in answer.headers["content-security-policy"]
     assert "cdn.jsdelivr.net" in answer.text  # what the policy allows is what the page loads
