@@ -31,7 +31,9 @@ from gearwatch.floor.errors import GearwatchError
 
 LONG_RUN = "GEARWATCH_FUZZ_EXAMPLES" in os.environ
 FUZZ_EXAMPLES = int(os.environ.get("GEARWATCH_FUZZ_EXAMPLES", "25"))
-HANG_SECONDS = 20
+HANG_SECONDS = 120
+"""A hang is an input that never ends; the bound is generous so that a slow input on a loaded
+2-core CI box (inputs take well under a second alone) is not reported as one."""
 
 FUZZ_SETTINGS = settings(
     max_examples=FUZZ_EXAMPLES,
