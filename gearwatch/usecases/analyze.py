@@ -505,10 +505,7 @@ def _analyze_channel(
         ),
         curves=curves,
         quality=quality,
-        baseline_stats={
-            "residual_variance": float(np.var(residual)),
-            "envelope_variance": float(envelope_variance(average, pinion_teeth)),
-        },
+        baseline_stats=_baseline_stats(residual, average, pinion_teeth, baselines),
         tooth_frame=tooth_frame,
         frame_fingerprints=fingerprints,
     )
@@ -554,3 +551,22 @@ def _tooth_evidence(
     if not np.any(np.isfinite(se)):
         return evidence, se, np.full(pinion_teeth, np.nan)  # no SE, no score (nor worst tooth)
     return evidence, se, tooth_scores(evidence, se)
+
+
+def _baseline_stats(
+    residual: np.ndarray, average: np.ndarray, pinion_teeth: int, baselines: Baselines
+) -> dict[str, float]:
+    """This record's share of the NA4/NB4 running baselines, and the baselines its NA4 and NB4
+    were divided by (``na4_baseline``, ``nb4_baseline``: the running means passed in, else the
+    record's own variances), so that :mod:`gearwatch.usecases.running_baselines` can rescale
+    them when a late record changes the baseline."""
+    residual_variance = float(np.var(residual))
+    envelope = float(envelope_variance(average, pinion_teeth))
+    return {
+        "residual_variance": residual_variance,
+        "envelope_variance": envelope,
+        "na4_baseline": (residual_variance if baselines.na4_residual_variance is None
+                         else float(baselines.na4_residual_variance)),
+        "nb4_baseline": (envelope if baselines.nb4_envelope_variance is None
+                         else float(baselines.nb4_envelope_variance)),
+    }

@@ -353,6 +353,7 @@ def _store(
 ) -> JobResult:
     """Write the outcome of an attempt: rejection, or results (+ alarms on first acceptance)."""
     from gearwatch.usecases.alarms import evaluate_record
+    from gearwatch.usecases.running_baselines import lock_rig, refresh_running_baselines
     from storage.repositories import RecordRepository, json_safe
 
     records = RecordRepository(session)
@@ -383,6 +384,10 @@ def _store(
                          result_id=_current_id(records, record.id))
     records.mark_accepted(record, analysis)
     result = records.add_result(record, analysis)
+    # NA4/NB4 of every accepted record follow the campaign's taken_at order, whatever order the
+    # records arrived in (before the alarm evaluation, which then sees the rescaled values).
+    lock_rig(session, record.rig_id)
+    refresh_running_baselines(session, record.campaign_id)
     changes: tuple[Any, ...] = ()
     if first_acceptance:  # a record enters its campaign's tooth-frame reference once
         _fold_tooth_frames(session, record, analysis)
