@@ -222,14 +222,18 @@ class _Deliverer:
         self.engine = engine
         self.lock = threading.Lock()
         self.thread: threading.Thread | None = None
+        self.running = False
+        """Set under :attr:`lock` until the thread has decided to end (``is_alive`` stays true
+        a little longer: a kick in that window would be lost)."""
         self.again = False
 
     def kick(self) -> None:
         with self.lock:
-            if self.thread is not None and self.thread.is_alive():
+            if self.running:
                 self.again = True
                 _WAKE.set()
                 return
+            self.running = True
             self.again = False
             self.thread = threading.Thread(
                 target=self._run, name="gearwatch-notify", daemon=True
@@ -237,17 +241,23 @@ class _Deliverer:
             self.thread.start()
 
     def _run(self) -> None:
-        while True:
-            try:
-                deliver_pending(self.engine)
-            except Exception:  # a database hiccup must not kill the process's deliveries
-                logger.exception("alarm notification delivery failed; retrying later")
-                time.sleep(FIRST_BACKOFF_S)
-                continue
+        try:
+            while True:
+                try:
+                    deliver_pending(self.engine)
+                except Exception:  # a database hiccup must not kill the process's deliveries
+                    logger.exception("alarm notification delivery failed; retrying later")
+                    time.sleep(FIRST_BACKOFF_S)
+                    continue
+                with self.lock:
+                    if not self.again:
+                        self.running = False
+                        return
+                    self.again = False
+        except BaseException:  # the thread dies: the next kick must start another one
             with self.lock:
-                if not self.again:
-                    return
-                self.again = False
+                self.running = False
+            raise
 
     def join(self, timeout_s: float) -> None:
         thread = self.thread

@@ -56,6 +56,12 @@ class Conflict(GearwatchError):
     code = "conflict"
 
 
+class DuplicateRecord(Conflict):
+    """The same content is already stored in the campaign. Raised when a concurrent ingestion
+    of the same file won the insert while this one was analysing: the caller rolls back and
+    runs again, which finds the stored record (outcome ``unchanged``)."""
+
+
 class Unauthorized(GearwatchError):
     http_status = 401
     code = "unauthorized"

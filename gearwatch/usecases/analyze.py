@@ -2,7 +2,12 @@
 
 This is the one place that strings the pure numerical core (:mod:`dsp`) together
 for a record and a campaign manifest. It does no I/O beyond :func:`analyze_file`
-reading the file it is given, and it never touches a database.
+reading the file it is given, and it never touches a database. Its steps live beside it:
+:mod:`~gearwatch.usecases.signal_checks` (a channel's checks and raw metrics),
+:mod:`~gearwatch.usecases.shaft_angle` (tachometer or mesh phase),
+:mod:`~gearwatch.usecases.angle_averages` (the synchronous averages, block by block) and
+:mod:`~gearwatch.usecases.tachless` (the tooth frame without a tach); their public names are
+importable from here too.
 
 Quality checks that refuse a record raise :class:`gearwatch.floor.errors.RecordRejected`
 with a one-line reason; the caller stores the record as rejected.
@@ -15,40 +20,14 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
-from dsp.angle import angle_grid_times, angle_resample
 from dsp.mci import moving_cepstrum_integral
-from dsp.metrics import (
-    crest_factor,
-    envelope_variance,
-    extremes_and_moment_sums,
-    gear_metrics,
-    kurtosis,
-    peak,
-    rms,
-)
+from dsp.metrics import crest_factor, envelope_variance, gear_metrics, kurtosis, peak, rms
 from dsp.quality import quality_score, sync_to_noise_db
-from dsp.robust import (
-    CLIP_MIN_RUN,
-    SampleDefects,
-    dropout_run_length,
-    find_sample_defects,
-    glitch_limits,
-    repair_spans,
-    revolution_outliers,
-    revolutions_overlapping,
-)
-from dsp.tach import (
-    RecordOutOfTachLimits,
-    TachAnalysis,
-    TachometerError,
-    analyze_tachometer,
-    pulse_times_from_waveform,
-    pulse_times_from_waveform_blocks,
-)
+from dsp.tach import TachAnalysis
 from dsp.teeth import (
     per_tooth_difference_stats,
     per_tooth_evidence,
@@ -56,7 +35,6 @@ from dsp.teeth import (
 )
 from dsp.toothframe import circular_shift
 from dsp.toothscore import (
-    JACKKNIFE_GROUPS,
     evidence_standard_error,
     leave_one_out_averages,
     standout_threshold,
@@ -78,9 +56,22 @@ from gearwatch.floor.results import (
     ToothResult,
 )
 from gearwatch.floor.version import code_version
+from gearwatch.usecases.angle_averages import (
+    AngleAverages,
+    angle_averages,
+    gear_revolutions_from_pinion_grid,
+)
+from gearwatch.usecases.shaft_angle import record_shaft_angle
+from gearwatch.usecases.signal_checks import (
+    CLIPPING_MIN_RUN,
+    MAX_ABS_SAMPLE,
+    MAX_DEFECTIVE_FRACTION,
+    ScannedSignal,
+    checked_signal,
+    clipped_fraction,
+)
 from gearwatch.usecases.tachless import (
     NO_HINT_REFUSAL,
-    mesh_phase_angle,
     place_in_tooth_frame,
     tach_frame_fingerprints,
 )
@@ -88,20 +79,23 @@ from gearwatch.usecases.tachless import (
     FramePlacement as _FramePlacement,
 )
 
-CLIPPING_MIN_RUN = CLIP_MIN_RUN
-"""Consecutive samples at the channel's extreme value that count as a clipped stretch."""
-MAX_DEFECTIVE_FRACTION = 0.05
-"""A channel with more of its samples defective (glitches, dropouts, clipped stretches) is refused
-outright; fewer are bridged and the revolutions they touch dropped."""
+__all__ = [
+    "BLOCK_SAMPLES",
+    "CLIPPING_MIN_RUN",
+    "MAX_ABS_SAMPLE",
+    "MAX_DEFECTIVE_FRACTION",
+    "MAX_REJECTED_REVOLUTION_FRACTION",
+    "SAMPLE_RATE_TOLERANCE",
+    "Baselines",
+    "analyze_file",
+    "analyze_record",
+    "clipped_fraction",
+    "gear_revolutions_from_pinion_grid",
+]
+
 MAX_REJECTED_REVOLUTION_FRACTION = 0.5
 """A channel that needs more than this fraction of its pinion revolutions dropped is refused: what
 is left would not be a typical average (a sensor clipped on every mesh peak ends up here)."""
-MAX_ABS_SAMPLE = 1e12
-"""Largest sample magnitude a record may hold (any unit): a 32-bit ADC counts to 2.1e9, no
-sensor reads 1e12 m/s² or V. Beyond it fourth moments overflow float64 and averages overflow the
-float32 curves. In the tachometer channel such a value is a corrupt file and the record is
-rejected with that reason; in an accelerometer channel it is a glitch (always, whatever the
-record's range), bridged and counted like any other (:mod:`dsp.robust`)."""
 SAMPLE_RATE_TOLERANCE = 1e-3
 """Relative difference between a record's own sample rate and the manifest's that is refused."""
 BLOCK_SAMPLES = 1 << 20
@@ -201,9 +195,9 @@ def analyze_record(
     if not accelerometers:
         raise RecordFormatError("the manifest declares no accelerometer channel")
     # every channel's checks before any heavy work: a bad channel rejects the record at once
-    scans = {channel.name: _checked_signal(record, channel.name, block_samples, params)
+    scans = {channel.name: checked_signal(record, channel.name, block_samples, params)
              for channel in accelerometers}
-    shaft = _shaft_angle(record, campaign, params, sample_rate_hz, block_samples, scans)
+    shaft = record_shaft_angle(record, campaign, params, sample_rate_hz, block_samples, scans)
     if isinstance(shaft, str):
         return _raw_metrics_only(shaft, scans, campaign, params, input_sha256)
     tach, pinion_per_tach_rev = shaft.tach, shaft.pinion_per_tach_rev
@@ -297,85 +291,9 @@ def _with_channel_quality(quality: Quality, channels: list[ChannelAnalysis]) -> 
     )
 
 
-def _pinion_revs_per_tach_rev(campaign: Campaign) -> float:
-    """Pinion revolutions per revolution of the shaft that carries the tachometer."""
-    rig = campaign.rig
-    shaft = campaign.tachometer.shaft if campaign.tachometer else "pinion"
-    if not (rig.pinion_teeth and rig.gear_teeth):
-        # Without tooth counts only the tach shaft itself can be averaged; call it the pinion.
-        return 1.0
-    return 1.0 if shaft == "pinion" else rig.gear_teeth / rig.pinion_teeth
-
-
-@dataclass(frozen=True)
-class _ShaftAngle:
-    """The record's shaft angle: tach pulses, or synthetic pulses from the mesh phase."""
-
-    tach: TachAnalysis
-    pinion_per_tach_rev: float
-    tach_on_pinion: bool
-    source: Literal["tachometer", "mesh_phase"]
-    tach_failure: str = ""
-    tachless: dict[str, Any] | None = None
-
-
-def _shaft_angle(
-    record: RecordData,
-    campaign: Campaign,
-    params: AnalysisParameters,
-    sample_rate_hz: float,
-    block_samples: int,
-    scans: Mapping[str, _ScannedSignal],
-) -> _ShaftAngle | str:
-    """The tach when it works; else the mesh phase when the tooth counts allow; else the reason.
-
-    A dead, missing or unusable tach channel does not lose the record: the angle comes from
-    the mesh phase instead (:func:`gearwatch.usecases.tachless.mesh_phase_angle`) and ``quality`` says why.
-    """
-    tach_failure = ""
-    if campaign.tachometer is not None:
-        try:
-            return _ShaftAngle(
-                tach=_analyze_tach(record, campaign, params, sample_rate_hz, block_samples),
-                pinion_per_tach_rev=_pinion_revs_per_tach_rev(campaign),
-                tach_on_pinion=campaign.tachometer.shaft == "pinion",
-                source="tachometer",
-            )
-        except _RefusedWithAWorkingTach:
-            raise
-        except (RecordRejected, RecordFormatError) as error:
-            tach_failure = " ".join(str(error).split())
-    else:
-        tach_failure = "the manifest has no [tachometer]"
-    rig = campaign.rig
-    if not (rig.pinion_teeth and rig.gear_teeth):
-        return (
-            f"no shaft angle: {tach_failure}, and without tooth counts ([rig] pinion_teeth, "
-            "gear_teeth) the mesh phase cannot stand in for it"
-        )
-    mesh = mesh_phase_angle(
-        {name: scan.samples for name, scan in scans.items()},
-        sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
-        nominal_pinion_rpm=rig.nominal_pinion_rpm,
-    )
-    if isinstance(mesh, str):
-        return f"no shaft angle: {tach_failure}; mesh phase: {mesh}"
-    return _ShaftAngle(
-        tach=mesh.tach, pinion_per_tach_rev=1.0, tach_on_pinion=True, source="mesh_phase",
-        tach_failure=tach_failure if campaign.tachometer is not None else "",
-        tachless=mesh.summary,
-    )
-
-
-class _RefusedWithAWorkingTach(RecordRejected):
-    """The tach measured the record itself failing (:class:`dsp.tach.RecordOutOfTachLimits`), or
-    its channel holds impossible values (a broken acquisition, not a dead tach): the mesh phase
-    would not rescue the record, so it is refused instead of analysed without the tach."""
-
-
 def _raw_metrics_only(
     reason: str,
-    scans: Mapping[str, _ScannedSignal],
+    scans: Mapping[str, ScannedSignal],
     campaign: Campaign,
     params: AnalysisParameters,
     input_sha256: str,
@@ -408,347 +326,10 @@ def _raw_metrics_only(
     )
 
 
-def _analyze_tach(
-    record: RecordData,
-    campaign: Campaign,
-    params: AnalysisParameters,
-    sample_rate_hz: float,
-    block_samples: int,
-) -> TachAnalysis:
-    config = campaign.tachometer
-    if config is None:
-        raise RecordRejected(
-            "the manifest has no [tachometer]: synchronous averaging needs a once-per-revolution reference"
-        )
-    raw = record.channel(config.channel)
-    try:
-        _refuse_impossible_magnitudes(raw, f"tachometer channel {config.channel!r}", block_samples)
-    except RecordRejected as error:
-        raise _RefusedWithAWorkingTach(str(error)) from error
-    try:
-        if config.kind == "pulses" and raw.size > block_samples:
-            # NaN/inf are refused block by block inside
-            pulse_times_s = pulse_times_from_waveform_blocks(
-                raw, sample_rate_hz, block_samples=block_samples
-            )
-        else:
-            raw = np.asarray(raw, dtype=np.float64)
-            if not np.all(np.isfinite(raw)):
-                raise RecordRejected(
-                    f"tachometer channel {config.channel!r} contains NaN or inf samples"
-                )
-            pulse_times_s = (
-                pulse_times_from_waveform(raw, sample_rate_hz) if config.kind == "pulses" else raw
-            )
-        return analyze_tachometer(
-            pulse_times_s,
-            config.pulses_per_rev,
-            max_speed_variation=params.max_speed_variation,
-            min_revolutions=params.min_revolutions,
-            min_speed_rpm=params.min_speed_rpm,
-            max_speed_rpm=params.max_speed_rpm,
-        )
-    except RecordOutOfTachLimits as error:
-        raise _RefusedWithAWorkingTach(f"tachometer: {error}") from error
-    except TachometerError as error:
-        raise RecordRejected(f"tachometer: {error}") from error
-
-
-def _refuse_impossible_magnitudes(samples: np.ndarray, what: str, block_samples: int) -> None:
-    """:class:`RecordRejected` when a finite sample exceeds :data:`MAX_ABS_SAMPLE` (NaN and
-    inf have their own checks); block by block, at the stored dtype."""
-    for start in range(0, samples.size, block_samples):
-        block = np.asarray(samples[start : start + block_samples])
-        if block.size == 0 or not np.issubdtype(block.dtype, np.number):
-            continue
-        magnitudes = np.abs(block[np.isfinite(block)]) if block.dtype.kind == "f" else np.abs(block)
-        peak = float(magnitudes.max()) if magnitudes.size else 0.0
-        if peak > MAX_ABS_SAMPLE:
-            raise RecordRejected(
-                f"{what} holds a sample of magnitude {peak:.3g}, beyond any sensor's range "
-                f"(limit {MAX_ABS_SAMPLE:g}): a corrupt file"
-            )
-
-
-@dataclass(frozen=True)
-class _ScannedSignal:
-    """A channel that passed the checks, with its raw-signal metrics and defective stretches."""
-
-    samples: np.ndarray
-    """The channel as read (possibly float32, possibly memory-mapped): convert per block."""
-    raw_metrics: dict[str, float]
-    clipped_fraction: float
-    defects: SampleDefects
-    """Glitches, dropouts and clipped stretches (record sample indices), bridged before
-    resampling; the revolutions they touch are left out of the averages."""
-
-
-def _checked_signal(
-    record: RecordData, name: str, block_samples: int, params: AnalysisParameters
-) -> _ScannedSignal:
-    """Find defective samples; compute ``raw_rms`` and ``raw_kurtosis`` without them; block by block.
-
-    Pass 1 finds the glitches (non-finite samples and samples far outside the record's robust
-    range, :func:`dsp.robust.glitch_limits`) and the channel's extremes without them; pass 2 finds
-    the clipped runs at those extremes and the dropouts, bridges every defective stretch
-    (:func:`dsp.robust.repair_spans`) and accumulates the moments in one pass per block
-    (:func:`dsp.metrics.extremes_and_moment_sums`) about the mean of the first good samples
-    (numerically safe for a signal whose mean does not wander by many standard deviations). A run
-    split by a block boundary counts as two (at most a few samples per 1-million-sample block).
-    A channel with more than :data:`MAX_DEFECTIVE_FRACTION` of its samples defective is refused.
-    """
-    samples = record.channel(name)
-    if samples.ndim != 1 or samples.size == 0:
-        raise RecordFormatError(f"channel {name!r} must be a non-empty 1-D signal")
-    starts = range(0, samples.size, block_samples)
-    lo, hi = glitch_limits(samples, params.glitch_range_factor)
-    limits = (max(lo, -MAX_ABS_SAMPLE), min(hi, MAX_ABS_SAMPLE))
-    dropout_run = dropout_run_length(samples)
-    top, bottom = -np.inf, np.inf
-    for start in starts:
-        block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
-        good = block[np.isfinite(block) & (block >= limits[0]) & (block <= limits[1])]
-        if good.size:
-            top, bottom = max(top, float(good.max())), min(bottom, float(good.min()))
-    if not np.isfinite(top):
-        raise RecordRejected(f"channel {name!r} holds no valid sample (all NaN, inf or glitches)")
-    parts: list[SampleDefects] = []
-    shift = None
-    sums = np.zeros(4)
-    for start in starts:
-        block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
-        defects = find_sample_defects(
-            block, limits=limits, extremes=(bottom, top), dropout_min_run=dropout_run
-        )
-        repaired = repair_spans(block, defects.spans())
-        if shift is None:  # moments about a value near the mean, so that the sums do not cancel
-            shift = float(np.mean(repaired[:1024]))
-        sums += extremes_and_moment_sums(repaired, shift)[2]
-        parts.append(defects.shifted(start))
-    defects = SampleDefects.concatenate(parts)
-    counts = defects.counts()
-    defective = sum(counts.values())
-    if defective > MAX_DEFECTIVE_FRACTION * samples.size:
-        what = ", ".join(f"{n} {k.removesuffix('_samples')}" for k, n in counts.items() if n)
-        raise RecordRejected(
-            f"channel {name!r} has {defective / samples.size:.2%} defective samples ({what}): "
-            + ("the sensor is clipped" if counts["clipped_samples"] * 2 > defective
-               else "the data are corrupt")
-        )
-    return _ScannedSignal(
-        samples,
-        _raw_moments_metrics(sums / samples.size),
-        counts["clipped_samples"] / samples.size,
-        defects,
-    )
-
-
-def _raw_moments_metrics(shifted_means: np.ndarray) -> dict[str, float]:
-    """``raw_rms`` (about the mean) and ``raw_kurtosis`` from E[y], E[y²], E[y³], E[y⁴] of y = x − c."""
-    d, m2_raw, m3_raw, m4_raw = (float(v) for v in shifted_means)
-    variance = max(m2_raw - d * d, 0.0)
-    fourth = m4_raw - 4 * d * m3_raw + 6 * d * d * m2_raw - 3 * d**4
-    kurt = fourth / variance**2 if variance > 0 and fourth > 0 else 0.0
-    return {"raw_rms": float(np.sqrt(variance)), "raw_kurtosis": float(kurt)}
-
-
-def clipped_fraction(
-    signal: np.ndarray,
-    min_run: int = CLIPPING_MIN_RUN,
-    extremes: tuple[float, float] | None = None,
-) -> float:
-    """Fraction of samples in runs of ≥ ``min_run`` consecutive samples equal to the signal's max or min.
-
-    A clipped sensor or a saturated ADC holds its extreme value; a healthy analogue signal
-    touches its extreme once. ``extremes`` = (min, max) when the caller already has them.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> clipped_fraction(np.array([0.0, 1.0, 1.0, 1.0, 0.5, -1.0, 0.0, 0.2]))
-    0.375
-    """
-    if signal.size < min_run:
-        return 0.0
-    bottom, top = extremes if extremes is not None else (signal.min(), signal.max())
-    if top == bottom:
-        return 1.0  # a constant (dead or pegged) channel
-    clipped = 0
-    for value in (top, bottom):
-        at = np.flatnonzero(signal == value)  # few samples unless the channel is clipped
-        if at.size < min_run:
-            continue
-        breaks = np.flatnonzero(np.diff(at) != 1)
-        lengths = np.diff(np.concatenate(([-1], breaks, [at.size - 1])))
-        clipped += int(lengths[lengths >= min_run].sum())
-    return clipped / signal.size
-
-
-def gear_revolutions_from_pinion_grid(pinion_revs: np.ndarray, gear_samples_per_rev: int) -> np.ndarray:
-    """Regroup pinion-angle samples into gear revolutions, without resampling again.
-
-    With the same number of samples per mesh period on both wheels, a gear revolution of
-    ``gear_teeth × samples_per_mesh`` samples spans exactly the same angle steps as the pinion grid
-    (one step = 1/samples_per_mesh of a mesh period), and both grids start at the tach reference
-    edge. So the gear's synchronous average is the pinion-grid series cut into gear revolutions:
-    exactly what a second resampling would give, at half the cost. The incomplete last gear
-    revolution is dropped.
-    """
-    flat = pinion_revs.reshape(-1)
-    whole = flat.size // gear_samples_per_rev
-    return flat[: whole * gear_samples_per_rev].reshape(whole, gear_samples_per_rev)
-
-
-@dataclass(frozen=True)
-class _AngleAverages:
-    pinion_average: np.ndarray
-    pinion_revolutions: int
-    """Pinion revolutions in the average (after rejection)."""
-    gear_average: np.ndarray
-    gear_revolutions: int
-    rejected_defective: int
-    """Pinion revolutions dropped because they overlap a defective (bridged) stretch."""
-    rejected_outliers: int
-    """Pinion revolutions dropped by the outlier test (:func:`dsp.robust.revolution_outliers`)."""
-    residual_power: float
-    """Mean power of the accepted revolutions about the average (non-synchronous power per
-    revolution), ``Σ_i mean((rev_i − avg)²) / (N − 1)``."""
-    pinion_group_sums: np.ndarray
-    """(JACKKNIFE_GROUPS, pinion_spr): sums of the accepted pinion revolutions r with
-    r mod K = group (the jackknife SE of the tooth evidence, :mod:`dsp.toothscore`)."""
-    pinion_group_counts: np.ndarray
-
-
-def _revolution_bounds_s(
-    pulses: np.ndarray, pulses_per_rev: int, shaft_ratio: float, duration_s: float
-) -> np.ndarray:
-    """Start and end time of each whole target-shaft revolution, on the same phase model as
-    :func:`dsp.angle.angle_resample` (a coarse grid of 16 angles per revolution)."""
-    times = angle_grid_times(
-        pulses, pulses_per_rev, 16, shaft_ratio=shaft_ratio, record_duration_s=duration_s
-    )
-    if times.shape[0] == 0:
-        return np.empty((0, 2))
-    step = times[:, -1] - times[:, -2]
-    return np.stack([times[:, 0], times[:, -1] + step], axis=1)
-
-
-def _angle_averages(
-    samples: np.ndarray,
-    sample_rate_hz: float,
-    pulse_times_s: np.ndarray,
-    pulses_per_rev: int,
-    pinion_spr: int,
-    gear_spr: int,
-    pinion_per_tach_rev: float,
-    hunting_tach_revs: int,
-    block_samples: int,
-    defects: SampleDefects,
-    outlier_factor: float,
-) -> _AngleAverages:
-    """Pinion and gear synchronous averages, the record resampled one block at a time.
-
-    A record of at most ``block_samples`` (in tach revolutions' worth) is resampled whole.
-    A longer one is cut into blocks of whole hunting periods (``hunting_tach_revs`` tach
-    revolutions, after which both wheels are back at their starting teeth), so every block
-    holds whole pinion AND whole gear revolutions on the common grid. Each block is resampled
-    with one hunting period of context on each side — pulses for the phase model and signal for
-    the interpolator and anti-alias filter — and only its own revolutions are kept, so block
-    edges do not show; the sums of the revolutions are accumulated and the resampled record
-    never exists whole.
-
-    Robustness: the ``defects`` stretches are bridged before resampling, the pinion revolutions
-    that overlap one (± the interpolator's reach) are dropped, and so are the outliers among the
-    rest of the block (:func:`dsp.robust.revolution_outliers`, against the block's own per-angle
-    median). A gear revolution is dropped when any of its samples lies in a dropped pinion
-    revolution.
-    """
-    whole_tach_revs = (pulse_times_s.size - 1) // pulses_per_rev
-    seconds_per_tach_rev = (pulse_times_s[-1] - pulse_times_s[0]) / max(
-        (pulse_times_s.size - 1) / pulses_per_rev, 1e-12
-    )
-    samples_per_hunting = hunting_tach_revs * seconds_per_tach_rev * sample_rate_hz
-    block_tach_revs = hunting_tach_revs * max(1, int(block_samples // max(samples_per_hunting, 1)))
-    pinion_sum = np.zeros(pinion_spr)
-    pinion_sumsq = np.zeros(pinion_spr)
-    gear_sum = np.zeros(gear_spr)
-    pinion_count = gear_count = rejected_defective = rejected_outliers = 0
-    spans = defects.spans()
-    margin_s = 4.0 / sample_rate_hz  # the quintic spline's stencil reaches 3 samples
-    # jackknife groups: accepted revolution r (counted over the record) goes to group r mod K
-    group_sums = np.zeros((JACKKNIFE_GROUPS, pinion_spr))
-    group_counts = np.zeros(JACKKNIFE_GROUPS, dtype=np.int64)
-    if whole_tach_revs <= block_tach_revs + hunting_tach_revs:
-        plan = [(0, whole_tach_revs, True)]
-    else:
-        edges = list(range(0, whole_tach_revs, block_tach_revs))
-        plan = [(r0, min(r0 + block_tach_revs, whole_tach_revs), r0 == edges[-1]) for r0 in edges]
-    for first_rev, end_rev, last in plan:
-        if len(plan) == 1:
-            start, stop = 0, samples.size
-            block_pulses, skip_pinion_revs = pulse_times_s, 0
-        else:
-            context_rev = max(0, first_rev - hunting_tach_revs)
-            first_pulse = context_rev * pulses_per_rev
-            last_pulse = min(pulse_times_s.size - 1, (end_rev + hunting_tach_revs) * pulses_per_rev)
-            start = max(0, int(np.floor(pulse_times_s[first_pulse] * sample_rate_hz)) - 16)
-            stop = min(samples.size, int(np.ceil(pulse_times_s[last_pulse] * sample_rate_hz)) + 16)
-            block_pulses = pulse_times_s[first_pulse : last_pulse + 1] - start / sample_rate_hz
-            skip_pinion_revs = round((first_rev - context_rev) * pinion_per_tach_rev)
-        block_spans = spans[(spans[:, 1] > start) & (spans[:, 0] < stop)] - start
-        block = repair_spans(np.asarray(samples[start:stop], dtype=np.float64), block_spans)
-        revs = angle_resample(
-            block, sample_rate_hz, block_pulses, pulses_per_rev, pinion_spr,
-            shaft_ratio=pinion_per_tach_rev,
-        )
-        bounds = _revolution_bounds_s(
-            block_pulses, pulses_per_rev, pinion_per_tach_rev, (block.size - 1) / sample_rate_hz
-        )[: revs.shape[0]]
-        keep = None if last else round((end_rev - first_rev) * pinion_per_tach_rev)
-        revs = revs[skip_pinion_revs:][:keep]
-        touched = revolutions_overlapping(
-            bounds[skip_pinion_revs:][:keep], block_spans / sample_rate_hz, margin_s
-        )
-        outliers = np.zeros_like(touched)
-        outliers[~touched] = revolution_outliers(revs[~touched], outlier_factor)
-        accepted = ~(touched | outliers)
-        rejected_defective += int(touched.sum())
-        rejected_outliers += int(outliers.sum())
-        good = revs[accepted]
-        pinion_sum += good.sum(axis=0)
-        pinion_sumsq += np.einsum("ij,ij->j", good, good)
-        groups = (pinion_count + np.arange(good.shape[0])) % JACKKNIFE_GROUPS
-        np.add.at(group_sums, groups, good)
-        np.add.at(group_counts, groups, 1)
-        pinion_count += good.shape[0]
-        gear_revs = gear_revolutions_from_pinion_grid(revs, gear_spr)
-        sample_ok = np.repeat(accepted, pinion_spr)[: gear_revs.size].reshape(gear_revs.shape)
-        gear_good = gear_revs[sample_ok.all(axis=1)]
-        gear_sum += gear_good.sum(axis=0)
-        gear_count += gear_good.shape[0]
-    pinion_average = pinion_sum / max(pinion_count, 1)
-    residual_power = (
-        float(np.mean(pinion_sumsq - pinion_count * pinion_average**2)) / (pinion_count - 1)
-        if pinion_count > 1
-        else 0.0
-    )
-    return _AngleAverages(
-        pinion_average,
-        pinion_count,
-        gear_sum / max(gear_count, 1),
-        gear_count,
-        rejected_defective,
-        rejected_outliers,
-        max(residual_power, 0.0),
-        group_sums,
-        group_counts,
-    )
-
-
 def _analyze_channel(
     *,
     name: str,
-    signal: _ScannedSignal,
+    signal: ScannedSignal,
     sample_rate_hz: float,
     tach: TachAnalysis,
     campaign: Campaign,
@@ -774,7 +355,7 @@ def _analyze_channel(
         pinion_spr = gear_spr = params.samples_per_rev_without_teeth
         hunting_tach_revs = 1
     try:
-        angle = _angle_averages(
+        angle = angle_averages(
             signal.samples, sample_rate_hz, pulse_times_s, ppr, pinion_spr, gear_spr,
             pinion_per_tach_rev, hunting_tach_revs, block_samples,
             signal.defects, params.revolution_outlier_factor,
@@ -934,7 +515,7 @@ def _analyze_channel(
 
 
 def _tooth_evidence(
-    angle: _AngleAverages,
+    angle: AngleAverages,
     mci_filtered: np.ndarray,
     pinion_teeth: int,
     tooth1_pitch_angle_deg: float,

@@ -109,6 +109,7 @@ def run_job(
     """
     import sqlalchemy.exc
 
+    from gearwatch.floor.errors import DuplicateRecord
     from gearwatch.floor.results import AnalysisParameters
     from gearwatch.floor.settings import Settings
     from gearwatch.usecases.ingest_file import campaign_config, process_file
@@ -134,7 +135,9 @@ def run_job(
                 )
             return {"record_id": result.record_id, "outcome": result.outcome,
                     "status": result.status, "reason": result.reason}
-        except sqlalchemy.exc.IntegrityError:
+        except (sqlalchemy.exc.IntegrityError, DuplicateRecord):
+            # Another worker stored the same content while this one analysed it: run again
+            # and find it stored (outcome ``unchanged``).
             if attempt == INTEGRITY_RETRIES:
                 raise
             logger.info("integrity conflict on %s (another worker?): retrying", path)

@@ -14,7 +14,7 @@ from pydantic import ValidationError
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from gearwatch.floor.errors import BrokerUnavailable, InputError, NotFound
+from gearwatch.floor.errors import BrokerUnavailable, DuplicateRecord, InputError, NotFound
 from gearwatch.floor.results import AnalysisParameters
 from gearwatch.floor.settings import Settings
 from gearwatch.usecases.ingest_file import (
@@ -24,7 +24,7 @@ from gearwatch.usecases.ingest_file import (
     record_suffix,
     reprocess_record,
 )
-from gearwatch.usecases.job_queue import enqueue_record, is_broker_unavailable
+from gearwatch.usecases.job_queue import INTEGRITY_RETRIES, enqueue_record, is_broker_unavailable
 from ingest.sources import file_sha256
 from service import schemas
 from service.convert import (
@@ -50,7 +50,6 @@ from storage.repositories import AuditRepository, RecordRepository, RigRepositor
 router = APIRouter(prefix="/api/v1", tags=["records"])
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+-]")
-INTEGRITY_RETRIES = 3
 
 
 def _job_out(db: Session, job: object) -> schemas.JobOut:
@@ -193,10 +192,11 @@ def _ingest_upload(
             )
             db.commit()
             break
-        except IntegrityError:
+        except (IntegrityError, DuplicateRecord):
             # The same file uploaded at the same moment by another request won the insert
-            # (PostgreSQL tells at once; SQLite serialises writers): run again, and find it
-            # stored, so every backend answers 200 `unchanged` as for a later upload.
+            # (PostgreSQL: the unique index; SQLite: the insert sees the other's commit): run
+            # again, and find it stored, so every backend answers 200 `unchanged` as for a
+            # later upload.
             db.rollback()
             if attempt == INTEGRITY_RETRIES:
                 raise

@@ -13,7 +13,7 @@ import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import selectinload
 
-from gearwatch.floor.errors import Conflict, InputError
+from gearwatch.floor.errors import Conflict, DuplicateRecord, InputError
 from gearwatch.floor.results import RecordAnalysis
 from storage.models import (
     RECORD_STATUSES,
@@ -132,9 +132,10 @@ class RecordRepository(Repository[Record]):
         size_bytes: int = 0,
         label: str = "",
     ) -> Record:
-        """A new ``pending`` record (``Conflict`` when that content is already in the campaign)."""
+        """A new ``pending`` record (``DuplicateRecord`` when that content is already in the
+        campaign)."""
         if self.get_by_sha256(campaign.id, sha256) is not None:
-            raise Conflict(f"record {sha256[:12]}… is already in campaign {campaign.name!r}")
+            raise DuplicateRecord(f"record {sha256[:12]}… is already in campaign {campaign.name!r}")
         record = Record(
             campaign_id=campaign.id,
             rig_id=campaign.rig_id,

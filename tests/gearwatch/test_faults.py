@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import selectors
+import signal
 import socket
 import subprocess
 import sys
@@ -31,7 +32,7 @@ def _closed_port() -> int:
 
 def _gearwatch(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "gearwatch", *args], capture_output=True,
-                          text=True, timeout=300, env=env)
+                          text=True, timeout=900, env=env)
 
 
 @pytest.mark.parametrize("scheme", ["postgres", "postgresql", "postgresql+psycopg"])
@@ -148,13 +149,17 @@ def test_postgresql_going_away_during_replay_then_a_rerun_resumes(
                "--no-progress", "--db", through_proxy]
     replay = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                               env=env)
-    deadline = time.monotonic() + 240
+    deadline = time.monotonic() + 900  # bounds on a hang on a loaded box, not speed limits
     while stored() < 2:
         assert replay.poll() is None, replay.communicate()
         assert time.monotonic() < deadline
         time.sleep(0.05)
+    # Hold the replay while the database goes away, so that it is cut mid-campaign however
+    # fast the remaining records would have gone.
+    replay.send_signal(signal.SIGSTOP)
     proxy.cut()
-    _, err = replay.communicate(timeout=120)
+    replay.send_signal(signal.SIGCONT)
+    _, err = replay.communicate(timeout=900)
     cut_at = stored()
     assert replay.returncode == 75, err
     assert err.startswith("gearwatch: error: database unavailable ("), err
@@ -162,7 +167,7 @@ def test_postgresql_going_away_during_replay_then_a_rerun_resumes(
     assert cut_at < n_records
 
     proxy.start()
-    again = subprocess.run(command, capture_output=True, text=True, env=env, timeout=300)
+    again = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
     proxy.cut()
     assert again.returncode == 0, again.stderr
     with engine.connect() as connection:
@@ -264,13 +269,17 @@ def test_rabbitmq_going_away_during_worker_ingestion_loses_and_duplicates_nothin
                 "SELECT count(*) FROM result_versions")).scalar() or 0)
 
     try:
-        deadline = time.monotonic() + 300
+        deadline = time.monotonic() + 900  # a bound on a hang on a loaded box
         while results() < 3:
             assert time.monotonic() < deadline, (tmp_path / "worker.log").read_text()[-3000:]
             time.sleep(0.05)
-        proxy.cut()
+        # Hold the worker while the broker goes away, so that it is cut mid-ingestion however
+        # fast the remaining records would have gone; then let it run into the outage.
+        os.killpg(worker.pid, signals.SIGSTOP)
         cut_at = results()
-        time.sleep(3.0)
+        proxy.cut()
+        os.killpg(worker.pid, signals.SIGCONT)
+        time.sleep(3.0)  # the length of the outage, not a synchronisation
         proxy.start()
         while results() < n_records:
             assert time.monotonic() < deadline, (tmp_path / "worker.log").read_text()[-3000:]

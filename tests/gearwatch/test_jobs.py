@@ -92,6 +92,38 @@ def test_ingesting_the_same_file_again_changes_nothing(db_session, store, tmp_pa
     assert len(analyzer.calls) == calls  # not even analysed again
 
 
+def test_the_same_file_stored_by_another_session_during_analysis_is_found_on_retry(
+    db_session, db_engine, store, tmp_path
+) -> None:
+    """The race behind 409s to concurrent identical uploads: while this ingestion analyses,
+    another one stores and commits the same content. The insert must raise ``DuplicateRecord``
+    (not a bare ``Conflict``) so the caller's retry finds the stored record, ``unchanged``."""
+    from gearwatch.floor.errors import DuplicateRecord
+    from storage.db import session_factory
+    from storage.repositories import CampaignRepository
+
+    campaign = make_campaign(tmp_path / "camp", [1.0])
+    path = campaign.record_path(campaign.records[0])
+    # The campaign exists already (as for an upload): this session holds no write lock while
+    # it analyses, which SQLite needs for the rival's commit to go through.
+    CampaignRepository(db_session).ensure(campaign)
+    db_session.commit()
+
+    class _RivalCommitsFirst(FakeAnalyzer):
+        def __call__(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+            with session_factory(db_engine)() as rival:
+                process_file(rival, path, campaign, raw_store=store, analyzer=FakeAnalyzer())
+                rival.commit()
+            return super().__call__(*args, **kwargs)
+
+    with pytest.raises(DuplicateRecord):
+        process_file(db_session, path, campaign, raw_store=store, analyzer=_RivalCommitsFirst())
+    db_session.rollback()
+    retried = process_file(db_session, path, campaign, raw_store=store, analyzer=FakeAnalyzer())
+    assert (retried.outcome, retried.status) == ("unchanged", "accepted")
+    assert RecordRepository(db_session).count() == 1
+
+
 def test_new_parameters_add_a_result_version_and_keep_the_old(db_session, store,
                                                                tmp_path) -> None:
     campaign = make_campaign(tmp_path / "camp", [1.0])
@@ -309,7 +341,7 @@ def _stop(process, sig) -> None:  # type: ignore[no-untyped-def]
     except ProcessLookupError:
         return
     try:
-        process.wait(timeout=30)
+        process.wait(timeout=120)  # a graceful stop finishes (and acks) the current job
     except Exception:
         import signal
 
@@ -389,7 +421,7 @@ def test_two_workers_one_killed_mid_job_every_record_exactly_once(
             return int(session.scalar(sa.select(sa.func.count()).select_from(model)) or 0)
 
     try:
-        deadline = time.monotonic() + 240
+        deadline = time.monotonic() + 900  # a bound on a hang on a loaded box, not a speed limit
         while count(Record) < 5 or not worker0_inside_a_job():
             assert time.monotonic() < deadline, (tmp_path / "worker0.log").read_text()[-3000:]
             assert all(w.poll() is None for w in workers), "a worker exited on its own"

@@ -17,12 +17,11 @@ import scipy.io
 from gearwatch.floor.campaign import RecordData
 from gearwatch.floor.errors import InputError
 from ingest.can import protocol as p
-from ingest.can.assembler import AssembledRecord
+from ingest.can.assembler import AssembledRecord, RecordAssembler
 from ingest.can.emulator import emulate, record_frames
 from ingest.can.live import listen, open_bus
+from tests.ingest.can_flow import random_group, windowed
 from tests.ingest.test_can_assembler import assert_same_record, make_record
-
-UDP_GROUP = "239.74.163.2"
 
 
 def _virtual_pair() -> tuple[can.BusABC, can.BusABC]:
@@ -32,9 +31,10 @@ def _virtual_pair() -> tuple[can.BusABC, can.BusABC]:
 
 def _udp_pair() -> tuple[can.BusABC, can.BusABC]:
     port = random.randint(42_000, 48_000)
+    group = random_group()
     try:
-        return open_bus("udp_multicast", UDP_GROUP, port=port), open_bus(
-            "udp_multicast", UDP_GROUP, port=port
+        return open_bus("udp_multicast", group, port=port), open_bus(
+            "udp_multicast", group, port=port
         )
     except InputError as error:  # pragma: no cover - depends on the sandbox
         pytest.skip(f"udp_multicast not available here: {error}")
@@ -42,12 +42,19 @@ def _udp_pair() -> tuple[can.BusABC, can.BusABC]:
 
 @pytest.fixture(params=["virtual", "udp_multicast"])
 def buses(request: pytest.FixtureRequest) -> Iterator[tuple[can.BusABC, can.BusABC]]:
+    """A sender and a receiver; on ``udp_multicast`` the sender keeps at most a window of
+    frames in flight (:mod:`tests.ingest.can_flow`), so a slow receiver loses nothing."""
     sender, receiver = _virtual_pair() if request.param == "virtual" else _udp_pair()
     try:
-        yield sender, receiver
+        yield windowed(sender, receiver) if request.param == "udp_multicast" else (sender, receiver)
     finally:
         sender.shutdown()
         receiver.shutdown()
+
+
+IDLE_S = 120.0
+"""The listener's idle timeout: it normally stops after the expected records; this only bounds
+a hang (a short one would end the listener early when the sender thread is slow to start)."""
 
 
 class Listener:
@@ -61,7 +68,7 @@ class Listener:
         self.thread.start()
 
     def _run(self, bus: can.BusABC) -> None:
-        self.stats = listen(bus, self._on_record, stop_event=self.stop, idle_timeout_s=5.0)
+        self.stats = listen(bus, self._on_record, stop_event=self.stop, idle_timeout_s=IDLE_S)
 
     def _on_record(self, record: AssembledRecord) -> None:
         self.records.append(record)
@@ -74,12 +81,14 @@ class Listener:
         return self.records
 
 
-# UDP sockets drop datagrams when flooded: the emulator's rate cap is its flow control there.
+# UDP sockets drop datagrams when flooded: the emulator's rate cap is its flow control there
+# (the tests' window, tests.ingest.can_flow, makes it lossless on a loaded machine too).
 RATE_CAP = {"virtual": None, "udp_multicast": 4_000.0}
 
 
 def _rate(sender: can.BusABC) -> float | None:
-    return RATE_CAP["udp_multicast" if "udp" in type(sender).__name__.lower() else "virtual"]
+    bus = getattr(sender, "bus", sender)  # the windowed wrapper
+    return RATE_CAP["udp_multicast" if "udp" in type(bus).__name__.lower() else "virtual"]
 
 
 def test_emulator_to_bus_to_assembler_gives_back_the_records(
@@ -175,10 +184,22 @@ def test_listen_stops_on_the_event_and_rejects_the_open_record() -> None:
             sender.send(msg)
         stop = threading.Event()
         got: list[AssembledRecord] = []
-        timer = threading.Timer(0.5, stop.set)
-        timer.start()
-        listen(receiver, got.append, stop_event=stop)
-        timer.cancel()
+
+        class StopWhenAllTaken(RecordAssembler):
+            """Sets the stop event once every queued frame was fed (not after a delay, which
+            a slow machine could exceed before the frames are read)."""
+
+            fed = 0
+
+            def feed(self, msg: can.Message) -> list[AssembledRecord]:
+                closed = super().feed(msg)
+                self.fed += 1
+                if self.fed == len(frames) - 1:
+                    stop.set()
+                return closed
+
+        listen(receiver, got.append, stop_event=stop, assembler=StopWhenAllTaken(source="t"),
+               idle_timeout_s=IDLE_S)
     finally:
         sender.shutdown()
         receiver.shutdown()

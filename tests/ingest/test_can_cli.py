@@ -19,6 +19,21 @@ from ingest.sources import read_record
 FS_HZ = 10_000.0
 
 
+def wait_for_virtual_listener(channel: str, listener: threading.Thread) -> None:
+    """Block until a bus is attached to the ``virtual`` channel (frames sent on a virtual bus
+    before the listener's bus exists are lost), however slow the machine is."""
+    from can.interfaces import virtual
+
+    deadline = time.monotonic() + 120  # a bound on a hang, not a speed requirement
+    while True:
+        with virtual.channels_lock:
+            if virtual.channels.get(channel):
+                return
+        assert listener.is_alive(), "listen-can ended before it opened its bus"
+        assert time.monotonic() < deadline, "listen-can never opened its bus"
+        time.sleep(0.01)
+
+
 def write_campaign(root: Path, n_records: int = 2) -> Path:
     rng = np.random.default_rng(5)
     records = []
@@ -61,12 +76,12 @@ def test_emulate_then_listen_writes_records_readable_by_the_registry(
         target=lambda: results.append(
             main(
                 ["listen-can", "--interface", "virtual", "--channel", channel, "--out", str(out),
-                 "--format", file_format, "--max-records", "2", "--idle-timeout", "10"]
+                 "--format", file_format, "--max-records", "2", "--idle-timeout", "120"]
             )
         )
     )
     listener.start()
-    time.sleep(0.3)  # the listener's bus must exist before frames are sent on a virtual bus
+    wait_for_virtual_listener(channel, listener)
     assert main(["emulate-can", "--campaign", str(manifest), "--interface", "virtual",
                  "--channel", channel, "--speed", "0"]) == 0
     listener.join(timeout=60)
@@ -105,11 +120,11 @@ def test_listen_writes_a_rejected_record_with_its_raw_frames(tmp_path: Path) -> 
     listener = threading.Thread(
         target=lambda: results.append(
             main(["listen-can", "--interface", "virtual", "--channel", channel, "--out", str(out),
-                  "--max-records", "1", "--idle-timeout", "10"])
+                  "--max-records", "1", "--idle-timeout", "120"])
         )
     )
     listener.start()
-    time.sleep(0.3)
+    wait_for_virtual_listener(channel, listener)
     bus = open_bus("virtual", channel)
     for msg in frames:
         bus.send(msg)

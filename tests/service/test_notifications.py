@@ -17,6 +17,24 @@ from tests.service.conftest import SPALL_TOOTH, Api, Replayed
 from tests.service.seed import Seeded, seed_campaign
 from tests.service.webhook_listener import WebhookListener
 
+SETTLE_S = 120.0
+"""A bound on waiting for deliveries (retries included), not a speed requirement."""
+
+
+def settled_notifications(api: Api, rig_id: str = "rig-a") -> list[dict[str, Any]]:
+    """The rig's notifications once none is ``pending`` (delivered or failed, attempts logged).
+
+    A receiver has the message before the delivering thread has written the answer to the
+    outbox, so a test reads the outbox only after it has settled."""
+    end = time.monotonic() + SETTLE_S
+    while True:
+        items: list[dict[str, Any]] = api.get(
+            f"/api/v1/notifications?rig_id={rig_id}", role="operator").json()["items"]
+        if items and all(n["status"] != "pending" for n in items):
+            return items
+        assert time.monotonic() < end, items
+        time.sleep(0.05)
+
 
 def test_a_replay_delivers_the_spalled_tooths_alarm_to_the_global_webhook(
     replayed_campaign: Replayed,
@@ -68,9 +86,10 @@ def test_a_failing_webhook_is_retried_with_back_off_and_every_attempt_is_logged(
         assert listener.wait_for(
             lambda got: any(m["tooth"] == seeded.spall_tooth for m in got)
         ), "the alarm never arrived"
+        # the listener has the body before the deliverer has logged the answer: wait for the log
+        items = settled_notifications(api)
     assert listener.requests == len(listener.received) + 2
     assert api.get("/api/v1/notifications").status_code == 403  # URLs may hold tokens
-    items = api.get("/api/v1/notifications?rig_id=rig-a", role="operator").json()["items"]
     retried = [n for n in items if n["attempts"] > 1]
     assert len(retried) == 1  # the two failures hit the first notification sent
     log = retried[0]["attempt_log"]
@@ -137,6 +156,7 @@ def test_alarm_changes_are_e_mailed_through_a_real_smtp_server(
         end = time.monotonic() + 60
         while not received and time.monotonic() < end:
             time.sleep(0.05)
+        items = settled_notifications(api)
     finally:
         controller.stop()
     assert received, "no e-mail arrived"
@@ -144,6 +164,5 @@ def test_alarm_changes_are_e_mailed_through_a_real_smtp_server(
     assert mail["To"] == "shift@rig-hall.test" and mail["From"] == "gearwatch@rig-hall.test"
     assert mail["Subject"] == f"[gearwatch] rig-a tooth {seeded.spall_tooth} mci_depth: alarm"
     assert "Dashboard: http" in mail.get_payload()
-    items = api.get("/api/v1/notifications?rig_id=rig-a", role="operator").json()["items"]
     assert [n["url"] for n in items] == ["mailto:shift@rig-hall.test"]
     assert items[0]["status"] == "delivered" and items[0]["attempt_log"][0]["status_code"] == 250

@@ -1,0 +1,152 @@
+"""The record's shaft angle: the tachometer when it works, else the mesh phase, else the reason.
+
+Part of the per-record chain (:mod:`gearwatch.usecases.analyze`). :func:`record_shaft_angle`
+returns the tachometer analysis the angle resampling runs on — from the tach channel, or from
+synthetic pulses at the mesh phase (:func:`gearwatch.usecases.tachless.mesh_phase_angle`) when the
+tach is missing or unusable — or, when neither works, the reason as a string.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from dsp.tach import (
+    RecordOutOfTachLimits,
+    TachAnalysis,
+    TachometerError,
+    analyze_tachometer,
+    pulse_times_from_waveform,
+    pulse_times_from_waveform_blocks,
+)
+from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.errors import RecordFormatError, RecordRejected
+from gearwatch.floor.results import AnalysisParameters
+from gearwatch.usecases.signal_checks import ScannedSignal, refuse_impossible_magnitudes
+from gearwatch.usecases.tachless import mesh_phase_angle
+
+
+def _pinion_revs_per_tach_rev(campaign: Campaign) -> float:
+    """Pinion revolutions per revolution of the shaft that carries the tachometer."""
+    rig = campaign.rig
+    shaft = campaign.tachometer.shaft if campaign.tachometer else "pinion"
+    if not (rig.pinion_teeth and rig.gear_teeth):
+        # Without tooth counts only the tach shaft itself can be averaged; call it the pinion.
+        return 1.0
+    return 1.0 if shaft == "pinion" else rig.gear_teeth / rig.pinion_teeth
+
+
+@dataclass(frozen=True)
+class ShaftAngle:
+    """The record's shaft angle: tach pulses, or synthetic pulses from the mesh phase."""
+
+    tach: TachAnalysis
+    pinion_per_tach_rev: float
+    tach_on_pinion: bool
+    source: Literal["tachometer", "mesh_phase"]
+    tach_failure: str = ""
+    tachless: dict[str, Any] | None = None
+
+
+def record_shaft_angle(
+    record: RecordData,
+    campaign: Campaign,
+    params: AnalysisParameters,
+    sample_rate_hz: float,
+    block_samples: int,
+    scans: Mapping[str, ScannedSignal],
+) -> ShaftAngle | str:
+    """The tach when it works; else the mesh phase when the tooth counts allow; else the reason.
+
+    A dead, missing or unusable tach channel does not lose the record: the angle comes from
+    the mesh phase instead (:func:`gearwatch.usecases.tachless.mesh_phase_angle`) and ``quality`` says why.
+    """
+    tach_failure = ""
+    if campaign.tachometer is not None:
+        try:
+            return ShaftAngle(
+                tach=_analyze_tach(record, campaign, params, sample_rate_hz, block_samples),
+                pinion_per_tach_rev=_pinion_revs_per_tach_rev(campaign),
+                tach_on_pinion=campaign.tachometer.shaft == "pinion",
+                source="tachometer",
+            )
+        except _RefusedWithAWorkingTach:
+            raise
+        except (RecordRejected, RecordFormatError) as error:
+            tach_failure = " ".join(str(error).split())
+    else:
+        tach_failure = "the manifest has no [tachometer]"
+    rig = campaign.rig
+    if not (rig.pinion_teeth and rig.gear_teeth):
+        return (
+            f"no shaft angle: {tach_failure}, and without tooth counts ([rig] pinion_teeth, "
+            "gear_teeth) the mesh phase cannot stand in for it"
+        )
+    mesh = mesh_phase_angle(
+        {name: scan.samples for name, scan in scans.items()},
+        sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
+        nominal_pinion_rpm=rig.nominal_pinion_rpm,
+    )
+    if isinstance(mesh, str):
+        return f"no shaft angle: {tach_failure}; mesh phase: {mesh}"
+    return ShaftAngle(
+        tach=mesh.tach, pinion_per_tach_rev=1.0, tach_on_pinion=True, source="mesh_phase",
+        tach_failure=tach_failure if campaign.tachometer is not None else "",
+        tachless=mesh.summary,
+    )
+
+
+class _RefusedWithAWorkingTach(RecordRejected):
+    """The tach measured the record itself failing (:class:`dsp.tach.RecordOutOfTachLimits`), or
+    its channel holds impossible values (a broken acquisition, not a dead tach): the mesh phase
+    would not rescue the record, so it is refused instead of analysed without the tach."""
+
+
+def _analyze_tach(
+    record: RecordData,
+    campaign: Campaign,
+    params: AnalysisParameters,
+    sample_rate_hz: float,
+    block_samples: int,
+) -> TachAnalysis:
+    config = campaign.tachometer
+    if config is None:
+        raise RecordRejected(
+            "the manifest has no [tachometer]: synchronous averaging needs a once-per-revolution reference"
+        )
+    raw = record.channel(config.channel)
+    try:
+        refuse_impossible_magnitudes(raw, f"tachometer channel {config.channel!r}", block_samples)
+    except RecordRejected as error:
+        raise _RefusedWithAWorkingTach(str(error)) from error
+    try:
+        if config.kind == "pulses" and raw.size > block_samples:
+            # NaN/inf are refused block by block inside
+            pulse_times_s = pulse_times_from_waveform_blocks(
+                raw, sample_rate_hz, block_samples=block_samples
+            )
+        else:
+            raw = np.asarray(raw, dtype=np.float64)
+            if not np.all(np.isfinite(raw)):
+                raise RecordRejected(
+                    f"tachometer channel {config.channel!r} contains NaN or inf samples"
+                )
+            pulse_times_s = (
+                pulse_times_from_waveform(raw, sample_rate_hz) if config.kind == "pulses" else raw
+            )
+        return analyze_tachometer(
+            pulse_times_s,
+            config.pulses_per_rev,
+            max_speed_variation=params.max_speed_variation,
+            min_revolutions=params.min_revolutions,
+            min_speed_rpm=params.min_speed_rpm,
+            max_speed_rpm=params.max_speed_rpm,
+        )
+    except RecordOutOfTachLimits as error:
+        raise _RefusedWithAWorkingTach(f"tachometer: {error}") from error
+    except TachometerError as error:
+        raise RecordRejected(f"tachometer: {error}") from error
+

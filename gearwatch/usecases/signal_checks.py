@@ -1,0 +1,170 @@
+"""A record channel's checks before any heavy work: impossible magnitudes, defective samples, raw metrics.
+
+Part of the per-record chain (:mod:`gearwatch.usecases.analyze`). :func:`checked_signal` scans an
+accelerometer channel block by block: it finds the glitches, dropouts and clipped stretches
+(:mod:`dsp.robust`), refuses a channel with too many of them, and computes the whole-record raw
+metrics without them. Refusals raise :class:`gearwatch.floor.errors.RecordRejected` with a
+one-line reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dsp.metrics import extremes_and_moment_sums
+from dsp.robust import (
+    CLIP_MIN_RUN,
+    SampleDefects,
+    dropout_run_length,
+    find_sample_defects,
+    glitch_limits,
+    repair_spans,
+)
+from gearwatch.floor.campaign import RecordData
+from gearwatch.floor.errors import RecordFormatError, RecordRejected
+from gearwatch.floor.results import AnalysisParameters
+
+CLIPPING_MIN_RUN = CLIP_MIN_RUN
+"""Consecutive samples at the channel's extreme value that count as a clipped stretch."""
+MAX_DEFECTIVE_FRACTION = 0.05
+"""A channel with more of its samples defective (glitches, dropouts, clipped stretches) is refused
+outright; fewer are bridged and the revolutions they touch dropped."""
+MAX_ABS_SAMPLE = 1e12
+"""Largest sample magnitude a record may hold (any unit): a 32-bit ADC counts to 2.1e9, no
+sensor reads 1e12 m/s² or V. Beyond it fourth moments overflow float64 and averages overflow the
+float32 curves. In the tachometer channel such a value is a corrupt file and the record is
+rejected with that reason; in an accelerometer channel it is a glitch (always, whatever the
+record's range), bridged and counted like any other (:mod:`dsp.robust`)."""
+
+
+def refuse_impossible_magnitudes(samples: np.ndarray, what: str, block_samples: int) -> None:
+    """:class:`RecordRejected` when a finite sample exceeds :data:`MAX_ABS_SAMPLE` (NaN and
+    inf have their own checks); block by block, at the stored dtype."""
+    for start in range(0, samples.size, block_samples):
+        block = np.asarray(samples[start : start + block_samples])
+        if block.size == 0 or not np.issubdtype(block.dtype, np.number):
+            continue
+        magnitudes = np.abs(block[np.isfinite(block)]) if block.dtype.kind == "f" else np.abs(block)
+        peak = float(magnitudes.max()) if magnitudes.size else 0.0
+        if peak > MAX_ABS_SAMPLE:
+            raise RecordRejected(
+                f"{what} holds a sample of magnitude {peak:.3g}, beyond any sensor's range "
+                f"(limit {MAX_ABS_SAMPLE:g}): a corrupt file"
+            )
+
+
+@dataclass(frozen=True)
+class ScannedSignal:
+    """A channel that passed the checks, with its raw-signal metrics and defective stretches."""
+
+    samples: np.ndarray
+    """The channel as read (possibly float32, possibly memory-mapped): convert per block."""
+    raw_metrics: dict[str, float]
+    clipped_fraction: float
+    defects: SampleDefects
+    """Glitches, dropouts and clipped stretches (record sample indices), bridged before
+    resampling; the revolutions they touch are left out of the averages."""
+
+
+def checked_signal(
+    record: RecordData, name: str, block_samples: int, params: AnalysisParameters
+) -> ScannedSignal:
+    """Find defective samples; compute ``raw_rms`` and ``raw_kurtosis`` without them; block by block.
+
+    Pass 1 finds the glitches (non-finite samples and samples far outside the record's robust
+    range, :func:`dsp.robust.glitch_limits`) and the channel's extremes without them; pass 2 finds
+    the clipped runs at those extremes and the dropouts, bridges every defective stretch
+    (:func:`dsp.robust.repair_spans`) and accumulates the moments in one pass per block
+    (:func:`dsp.metrics.extremes_and_moment_sums`) about the mean of the first good samples
+    (numerically safe for a signal whose mean does not wander by many standard deviations). A run
+    split by a block boundary counts as two (at most a few samples per 1-million-sample block).
+    A channel with more than :data:`MAX_DEFECTIVE_FRACTION` of its samples defective is refused.
+    """
+    samples = record.channel(name)
+    if samples.ndim != 1 or samples.size == 0:
+        raise RecordFormatError(f"channel {name!r} must be a non-empty 1-D signal")
+    starts = range(0, samples.size, block_samples)
+    lo, hi = glitch_limits(samples, params.glitch_range_factor)
+    limits = (max(lo, -MAX_ABS_SAMPLE), min(hi, MAX_ABS_SAMPLE))
+    dropout_run = dropout_run_length(samples)
+    top, bottom = -np.inf, np.inf
+    for start in starts:
+        block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
+        good = block[np.isfinite(block) & (block >= limits[0]) & (block <= limits[1])]
+        if good.size:
+            top, bottom = max(top, float(good.max())), min(bottom, float(good.min()))
+    if not np.isfinite(top):
+        raise RecordRejected(f"channel {name!r} holds no valid sample (all NaN, inf or glitches)")
+    parts: list[SampleDefects] = []
+    shift = None
+    sums = np.zeros(4)
+    for start in starts:
+        block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
+        defects = find_sample_defects(
+            block, limits=limits, extremes=(bottom, top), dropout_min_run=dropout_run
+        )
+        repaired = repair_spans(block, defects.spans())
+        if shift is None:  # moments about a value near the mean, so that the sums do not cancel
+            shift = float(np.mean(repaired[:1024]))
+        sums += extremes_and_moment_sums(repaired, shift)[2]
+        parts.append(defects.shifted(start))
+    defects = SampleDefects.concatenate(parts)
+    counts = defects.counts()
+    defective = sum(counts.values())
+    if defective > MAX_DEFECTIVE_FRACTION * samples.size:
+        what = ", ".join(f"{n} {k.removesuffix('_samples')}" for k, n in counts.items() if n)
+        raise RecordRejected(
+            f"channel {name!r} has {defective / samples.size:.2%} defective samples ({what}): "
+            + ("the sensor is clipped" if counts["clipped_samples"] * 2 > defective
+               else "the data are corrupt")
+        )
+    return ScannedSignal(
+        samples,
+        _raw_moments_metrics(sums / samples.size),
+        counts["clipped_samples"] / samples.size,
+        defects,
+    )
+
+
+def _raw_moments_metrics(shifted_means: np.ndarray) -> dict[str, float]:
+    """``raw_rms`` (about the mean) and ``raw_kurtosis`` from E[y], E[y²], E[y³], E[y⁴] of y = x − c."""
+    d, m2_raw, m3_raw, m4_raw = (float(v) for v in shifted_means)
+    variance = max(m2_raw - d * d, 0.0)
+    fourth = m4_raw - 4 * d * m3_raw + 6 * d * d * m2_raw - 3 * d**4
+    kurt = fourth / variance**2 if variance > 0 and fourth > 0 else 0.0
+    return {"raw_rms": float(np.sqrt(variance)), "raw_kurtosis": float(kurt)}
+
+
+def clipped_fraction(
+    signal: np.ndarray,
+    min_run: int = CLIPPING_MIN_RUN,
+    extremes: tuple[float, float] | None = None,
+) -> float:
+    """Fraction of samples in runs of ≥ ``min_run`` consecutive samples equal to the signal's max or min.
+
+    A clipped sensor or a saturated ADC holds its extreme value; a healthy analogue signal
+    touches its extreme once. ``extremes`` = (min, max) when the caller already has them.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> clipped_fraction(np.array([0.0, 1.0, 1.0, 1.0, 0.5, -1.0, 0.0, 0.2]))
+    0.375
+    """
+    if signal.size < min_run:
+        return 0.0
+    bottom, top = extremes if extremes is not None else (signal.min(), signal.max())
+    if top == bottom:
+        return 1.0  # a constant (dead or pegged) channel
+    clipped = 0
+    for value in (top, bottom):
+        at = np.flatnonzero(signal == value)  # few samples unless the channel is clipped
+        if at.size < min_run:
+            continue
+        breaks = np.flatnonzero(np.diff(at) != 1)
+        lengths = np.diff(np.concatenate(([-1], breaks, [at.size - 1])))
+        clipped += int(lengths[lengths >= min_run].sum())
+    return clipped / signal.size
+
