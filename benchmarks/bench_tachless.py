@@ -201,7 +201,7 @@ def _delay_between(a: np.ndarray, b: np.ndarray) -> int:
 
 
 def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
-                 simulator: str = "physics") -> dict[str, Any]:
+                 simulator: str = "physics", random_start: bool = True) -> dict[str, Any]:
     days = (_simulate_days(spec, seconds, cache) if simulator == "physics"
             else _independent_days(spec, seconds, cache))
     fs = float(days[0]["fs"])
@@ -209,6 +209,8 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
                                     float(days[0].get("rpm", 0.0)))
     params = AnalysisParameters(samples_per_mesh=32)
     rng = np.random.default_rng(spec.seed + 11)
+    start_rng = np.random.default_rng(spec.seed + 13)
+    rev_samples = int(2 * fs * 60.0 / (float(days[0].get("rpm", 0.0)) or NOMINAL_RPM))
     reference: ToothFrameReference | None = None
     tach_teeth: list[dict[int, float] | None] = []
     tl_teeth: list[dict[int, float] | None] = []
@@ -224,7 +226,11 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         if "noise_added" in day:  # the independent generator adds its own
             factor = 0.0
         noisy = acc + factor * float(np.std(acc)) * rng.standard_normal(acc.size)
-        record = RecordData({"acc": noisy, "tach": day["tach"].astype(np.float64)}, fs)
+        tach = day["tach"].astype(np.float64)
+        if random_start:  # the simulators start every day at the same angle: a real day does not
+            crop = int(start_rng.integers(0, rev_samples))
+            noisy, tach = noisy[crop:], tach[crop:]
+        record = RecordData({"acc": noisy, "tach": tach}, fs)
         sha = f"seed{spec.seed}-day{index + 1}"
         tach_result = analyze_record(record, with_tach, params, input_sha256=sha)
         tach_teeth.append({t.tooth: t.mci_depth for t in tach_result.channels[0].teeth})
@@ -270,6 +276,22 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
     }
 
 
+REASON_KINDS = (
+    ("ambiguous", "ambiguous tooth frame"), ("no match", "does not match the reference"),
+    ("no hint", "speed came from the spectrum"), ("no mesh line", "no mesh line"),
+    ("band not clean", "not clean"),
+)
+
+
+def reason_counts(rows: list[dict[str, Any]]) -> dict[str, int]:
+    """Refusals and no-angle days by kind of reason (which refusal costs the most)."""
+    counts: dict[str, int] = {}
+    for reason in (x for r in rows for x in r["reasons"]):
+        kind = next((k for k, text in REASON_KINDS if text in reason), "other")
+        counts[kind] = counts.get(kind, 0) + 1
+    return counts
+
+
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     days = [a for r in rows for a in r["alignment"] if a not in ("reference",)]
     after_onset = [a for r in rows for d, a in enumerate(r["alignment"], start=1)
@@ -307,6 +329,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "spalled_right": after_onset.count("right"),
         "spalled_wrong": after_onset.count("wrong"),
         "spalled_refused": after_onset.count("refused") + after_onset.count("no-angle"),
+        "reasons": reason_counts(rows),
     }
 
 
@@ -326,6 +349,9 @@ def main() -> int:
     parser.add_argument("--cache", default=".bench-cache/tachless")
     parser.add_argument("--json", default=None)
     parser.add_argument("--no-hint", action="store_true", help="no nominal speed: find it in the spectrum")
+    parser.add_argument("--same-start", action="store_true",
+                        help="do not crop a random 0–2 pinion revolutions off each record's start "
+                             "(the simulators start every day at the same shaft angle)")
     parser.add_argument("--simulator", choices=("physics", "indep"), default="physics",
                         help="physics: the project simulator; indep: physics.independent")
     args = parser.parse_args()
@@ -338,7 +364,7 @@ def main() -> int:
         rows = []
         for seed in seeds:
             row = run_campaign(campaign_spec(seed, args.days), args.seconds, cache, not args.no_hint,
-                               args.simulator)
+                               args.simulator, not args.same_start)
             rows.append(row)
             print(json.dumps(row), flush=True)
         report[name] = {"summary": summarise(rows), "rows": rows}
@@ -352,7 +378,8 @@ def main() -> int:
     for name, block in report.items():
         s = block["summary"]
         print(f"{name}: days with the spall: {s['spalled_days']}, right {s['spalled_right']}, "
-              f"refused/no angle {s['spalled_refused']}, wrong {s['spalled_wrong']}")
+              f"refused/no angle {s['spalled_refused']}, wrong {s['spalled_wrong']}; "
+              f"refusals by reason: {s['reasons']}")
     print(f"({time.perf_counter() - started:.0f} s, {os.cpu_count()} cpus)")
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1), encoding="utf-8")

@@ -17,7 +17,8 @@ This module
    sector energy so that one damaged tooth cannot dominate the match, unit RMS;
 3. finds the whole-tooth shift between two fingerprints by circular cross-correlation and
    refuses when it is not clear (:func:`align_fingerprint`): the best correlation must reach
-   :data:`MIN_CORRELATION` and lead the runner-up shift by :data:`MIN_MARGIN`.
+   :data:`MIN_CORRELATION` and fit better than every other whole-tooth shift by
+   :data:`MIN_SEPARATION_Z` standard errors (:func:`shift_separation_z`).
 
 Everything here is pure: arrays in, arrays and frozen dataclasses out. Shifts are *delays*:
 ``circular_shift(x, d)[n] = x[n − d]`` (fractional ``d`` by the Fourier shift theorem, exact for
@@ -48,21 +49,23 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "MIN_CORRELATION",
-    "MIN_MARGIN",
+    "MIN_SEPARATION_Z",
     "FrameAlignment",
     "align_fingerprint",
     "circular_shift",
     "mesh_phase_position",
     "resample_periodic",
+    "shift_separation_z",
     "tooth_fingerprint",
 ]
 
 FloatArray = NDArray[np.float64]
 
-MIN_CORRELATION = 0.30
+MIN_CORRELATION = 0.15
 """The best whole-tooth shift must correlate at least this well with the reference."""
-MIN_MARGIN = 0.20
-"""…and lead the second-best shift by at least this much; otherwise the frame is refused."""
+MIN_SEPARATION_Z = 3.5
+"""…and fit better than every other whole-tooth shift by this many standard errors
+(:func:`shift_separation_z`); otherwise the frame is refused."""
 SEARCH_REACH_TEETH = 0.25
 """Each whole-tooth shift is scored by the best correlation within this fraction of a tooth."""
 OUTLIER_SECTOR_ENERGY_RATIO = 4.0
@@ -91,6 +94,11 @@ class FrameAlignment:
         The record's fingerprint is the reference's delayed by this many samples (the best
         sample shift, within a quarter tooth of ``shift_teeth`` teeth): the canonical positions of
         two noisy averages may differ by a fraction of a mesh period, and this absorbs it.
+    separation_z : float
+        How many standard errors the best shift's fit leads the closest competing whole-tooth
+        shift by (:func:`shift_separation_z`); the noise comes from the residual of the fit.
+    candidate_teeth : int
+        The best whole-tooth shift, also when refused (for diagnostics only).
     """
 
     shift_teeth: int | None
@@ -99,6 +107,8 @@ class FrameAlignment:
     margin: float
     refusal: str = ""
     delay_samples: int = 0
+    separation_z: float = 0.0
+    candidate_teeth: int = 0
 
 
 def _checked(average: ArrayLike, teeth: int) -> FloatArray:
@@ -213,7 +223,7 @@ def align_fingerprint(
     teeth: int,
     *,
     min_correlation: float = MIN_CORRELATION,
-    min_margin: float = MIN_MARGIN,
+    min_separation_z: float = MIN_SEPARATION_Z,
 ) -> FrameAlignment:
     """Whole-tooth shift that lines a record's fingerprint up with the reference's.
 
@@ -223,7 +233,11 @@ def align_fingerprint(
     reference is resampled to the record's length when they differ. Refused (with the
     reason, ``shift_teeth`` None) when the best correlation is below ``min_correlation`` (the
     pattern is not the reference's: another gear, a re-assembly, too much noise) or leads
-    the runner-up by less than ``min_margin`` (ambiguous: two teeth look alike).
+    every other whole-tooth shift by less than ``min_separation_z`` standard errors
+    (:func:`shift_separation_z`; ambiguous: two teeth look alike, or the noise hides which). The
+    correlation margin over the runner-up is reported, not used: a smooth pattern (runout)
+    correlates almost as well one tooth away, yet the orders that tell the two shifts apart may
+    be well above the noise.
 
     Examples
     --------
@@ -251,19 +265,92 @@ def align_fingerprint(
     delay = (best * per_tooth - reach + int(np.argmax(windows[best]))) % fp.size
     correlation, runner_up = float(candidates[best]), float(candidates[second])
     margin = correlation - runner_up
+    others = [j for j in range(teeth) if j != best]
+    other_delays = [(j * per_tooth - reach + int(np.argmax(windows[j]))) % fp.size for j in others]
+    separations = shift_separation_z(fp, ref, int(delay), other_delays, teeth) if others else np.array([math.inf])
+    z = float(separations.min())
     if correlation < min_correlation:
         return FrameAlignment(
             None, correlation, runner_up, margin,
             f"the tooth pattern does not match the reference: best correlation {correlation:.2f} "
             f"(shift {best} teeth) < {min_correlation:.2f}",
+            delay_samples=int(delay), separation_z=z, candidate_teeth=best,
         )
-    if margin < min_margin:
+    if z < min_separation_z:
+        closest = others[int(np.argmin(separations))]
         return FrameAlignment(
             None, correlation, runner_up, margin,
-            f"ambiguous tooth frame: shifts of {best} and {second} teeth correlate {correlation:.2f} "
-            f"and {runner_up:.2f} (margin {margin:.2f} < {min_margin:.2f})",
+            f"ambiguous tooth frame: shift {best} teeth (correlation {correlation:.2f}) leads shift "
+            f"{closest} by only {z:.1f} standard errors (< {min_separation_z:g}; correlation margin "
+            f"over the runner-up {margin:.2f})",
+            delay_samples=int(delay), separation_z=z, candidate_teeth=best,
         )
-    return FrameAlignment(best, correlation, runner_up, margin, delay_samples=int(delay))
+    return FrameAlignment(best, correlation, runner_up, margin, delay_samples=int(delay),
+                          separation_z=z, candidate_teeth=best)
+
+
+def shift_separation_z(
+    fingerprint: ArrayLike, reference: ArrayLike, best_delay: int, other_delays: ArrayLike, teeth: int
+) -> FloatArray:
+    """Standard errors by which ``best_delay`` fits the record better than each other delay.
+
+    The record's fingerprint ``f`` is modelled as the reference ``r`` delayed by ``d`` and
+    scaled, plus noise: ``f = α·r(· − d) + e``. For a competing delay ``d'``, the evidence for
+    ``d`` is ``D = ⟨f, r(· − d) − r(· − d')⟩`` (the difference of the two fits' residual
+    energies, over 2α); under the model its noise is ``⟨e, r(· − d) − r(· − d')⟩``, whose
+    variance is the sum over orders of the noise power times the power of the difference
+    ``|R_k|²·|e^{−iω_k d} − e^{−iω_k d'}|²``. The noise power per order is the residual's
+    ``|F_k − α R_k e^{−iω_k d}|²``, smoothed over ``teeth`` neighbouring orders: it holds the
+    record's noise, the reference's noise and whatever does not match (a growing spall), so a
+    poor fit makes every separation small.
+
+    Why this and not only the correlation margin: a smooth pattern (runout, a slow index
+    error) correlates almost as well one tooth away, so the margin between neighbouring shifts
+    is small — but so is its noise, since both fits share the smooth part. The separation
+    weighs each order by how much it tells the two shifts apart.
+
+    Returns
+    -------
+    ndarray
+        One z per entry of ``other_delays`` (finite: the noise has a floor of 1e-12 of the
+        record's power, so an exact copy of the reference gives a large number, not inf).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(3)
+    >>> ref = np.convolve(rng.normal(size=640), np.ones(40) / 40, mode="same")   # smooth pattern
+    >>> rec = np.roll(ref, 96) + 0.02 * rng.normal(size=640)
+    >>> z = shift_separation_z(rec, ref, 96, [64, 128, 320], 20)
+    >>> bool(z.min() > 8)
+    True
+    """
+    f = np.asarray(fingerprint, dtype=np.float64)
+    r = resample_periodic(np.asarray(reference, dtype=np.float64), f.size)
+    n = f.size
+    big_f, big_r = scipy.fft.rfft(f), scipy.fft.rfft(r)
+    k = np.arange(big_f.size)
+    weight = np.full(big_f.size, 2.0)
+    weight[0] = 1.0
+    if n % 2 == 0:
+        weight[-1] = 1.0
+    energy = float(np.sum(weight * np.abs(big_r) ** 2))
+    if not energy > 0.0:
+        return np.zeros(np.size(other_delays))
+    at_best = big_r * np.exp(-2j * np.pi * k * best_delay / n)
+    alpha = float(np.sum(weight * (big_f * np.conj(at_best)).real)) / energy
+    residual = np.abs(big_f - alpha * at_best) ** 2
+    width = max(3, int(teeth) | 1)
+    noise = np.convolve(np.pad(residual, width // 2, mode="reflect"), np.ones(width) / width, mode="valid")
+    # a floor (1e-12 of the record's mean power per order): an exact copy gives a large, finite z
+    noise = noise + 1e-12 * float(np.mean(np.abs(big_f) ** 2)) + 1e-300
+    z = []
+    for other in np.atleast_1d(np.asarray(other_delays, dtype=np.float64)):
+        difference = at_best - big_r * np.exp(-2j * np.pi * k * other / n)
+        evidence = float(np.sum(weight * (big_f * np.conj(difference)).real))
+        variance = float(np.sum(weight**2 * noise * np.abs(difference) ** 2) / 2.0)
+        z.append(evidence / math.sqrt(variance) if variance > 0.0 else math.inf)
+    return np.asarray(z, dtype=np.float64)
 
 
 def frame_delay_samples(

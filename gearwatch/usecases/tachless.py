@@ -243,6 +243,7 @@ def _alignment_json(alignment: Any) -> dict[str, Any]:
         "correlation": round(float(alignment.correlation), 4),
         "runner_up": round(float(alignment.runner_up), 4),
         "margin": round(float(alignment.margin), 4),
+        "separation_z": round(float(alignment.separation_z), 2),
     }
 
 

@@ -123,6 +123,18 @@ function sparkline(canvas, values) {
   ctx.stroke();
 }
 
+/* Without a tachometer the tooth numbers are the campaign's own frame (issue 11): say which. */
+function frameText(q) {
+  if (q.angle_source === "none") return "no shaft angle: whole-record metrics only";
+  if (q.angle_source !== "mesh_phase") return "";
+  const f = Object.values(q.tooth_frames || {})[0] || {};
+  if (f.kind === "refused") return "angle from the mesh phase; tooth numbers refused (frame not found)";
+  if (f.kind === "own") return "angle from the mesh phase; tooth numbers in the record's own frame";
+  const anchor = f.reference_frame === "tachometer" ? "the tach days' numbering" : "the campaign's tach-less frame";
+  const z = f.pinion && Number.isFinite(f.pinion.separation_z) ? `, ${f.pinion.separation_z.toFixed(1)} SE clear` : "";
+  return `angle from the mesh phase; teeth in ${anchor}${f.founds_reference ? " (founds it)" : z}`;
+}
+
 function qualityText(last) {
   if (!last) return "";
   if (last.status !== "accepted") return `${last.status}${last.reason ? ": " + last.reason : ""}`;
@@ -132,6 +144,8 @@ function qualityText(last) {
   if (Number.isFinite(q.speed_variation)) parts.push(`speed variation ${(100 * q.speed_variation).toFixed(1)} %`);
   if (Array.isArray(q.tach_repairs)) parts.push(`${q.tach_repairs.length} tach repair(s)`);
   if (Number.isFinite(q.clipped_fraction) && q.clipped_fraction > 0) parts.push(`clipped ${(100 * q.clipped_fraction).toFixed(2)} %`);
+  const frame = frameText(q);
+  if (frame) parts.push(frame);
   return parts.join(", ");
 }
 

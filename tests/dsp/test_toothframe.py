@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 
 from dsp.toothframe import (
-    MIN_MARGIN,
+    MIN_SEPARATION_Z,
     align_fingerprint,
     circular_shift,
     frame_delay_samples,
     mesh_phase_position,
     resample_periodic,
+    shift_separation_z,
     tooth_fingerprint,
 )
 
@@ -45,7 +46,7 @@ def test_a_shifted_record_is_brought_back_into_the_reference_frame(shift_teeth: 
     record = circular_shift(gear_average(seed=2), (shift_teeth + fraction) * SPM)
     alignment = align_fingerprint(tooth_fingerprint(record, TEETH), tooth_fingerprint(reference, TEETH), TEETH)
     assert alignment.refusal == ""
-    assert alignment.margin >= MIN_MARGIN
+    assert alignment.separation_z >= MIN_SEPARATION_Z
     # into the reference's own (tach) frame: where its mesh harmonic peaks
     delay = frame_delay_samples(record, TEETH, alignment.delay_samples, mesh_phase_position(reference, TEETH))
     back = circular_shift(record, delay)
@@ -73,7 +74,51 @@ def test_an_ambiguous_pattern_is_refused_with_the_margin() -> None:
     alignment = align_fingerprint(tooth_fingerprint(other, teeth), tooth_fingerprint(average, teeth), teeth)
     assert alignment.shift_teeth is None
     assert alignment.refusal.startswith("ambiguous tooth frame")
-    assert "margin" in alignment.refusal and alignment.margin < MIN_MARGIN
+    assert "standard errors" in alignment.refusal and alignment.separation_z < MIN_SEPARATION_Z
+    assert "margin" in alignment.refusal and alignment.margin < 0.05  # the two halves fit alike
+
+
+def smooth_average(seed: int, noise: float, teeth: int = 61) -> np.ndarray:
+    """A wheel whose tooth pattern is mostly smooth (runout, a slow index error: orders 1–3)
+    with a small tooth-to-tooth part: neighbouring shifts correlate almost as well."""
+    n = np.arange(teeth * SPM)
+    rng = np.random.default_rng(11)
+    smooth = sum(rng.normal(0, 0.3) * np.cos(2 * np.pi * k * n / n.size + rng.uniform(0, 6)) for k in (1, 2, 3))
+    fine = np.convolve(np.tile(np.repeat(rng.normal(0, 0.05, teeth), SPM), 3), np.hanning(SPM) / SPM * 2, "same")
+    mesh = np.cos(2 * np.pi * teeth * n / n.size)
+    return mesh + smooth + fine[n.size : 2 * n.size] + noise * np.random.default_rng(seed).standard_normal(n.size)
+
+
+def test_a_smooth_pattern_is_placed_by_the_orders_that_tell_neighbours_apart() -> None:
+    # neighbouring shifts correlate within a few hundredths (the old margin rule of 0.20 refused
+    # this), but the tooth-to-tooth orders stand well clear of the noise: the right tooth, accepted
+    teeth = 61
+    reference = smooth_average(seed=1, noise=0.02, teeth=teeth)
+    record = circular_shift(smooth_average(seed=2, noise=0.02, teeth=teeth), 23 * SPM)
+    alignment = align_fingerprint(tooth_fingerprint(record, teeth), tooth_fingerprint(reference, teeth), teeth)
+    assert alignment.margin < 0.05
+    assert (alignment.shift_teeth, alignment.refusal) == (23, "")
+    assert alignment.separation_z >= MIN_SEPARATION_Z
+
+
+def test_a_smooth_pattern_in_heavy_noise_is_refused_not_guessed() -> None:
+    # the same wheel with the tooth-to-tooth part buried: refused for every noise draw (the best
+    # candidate is sometimes the neighbour, tooth 24)
+    teeth = 61
+    reference = smooth_average(seed=1, noise=0.02, teeth=teeth)
+    for seed in range(3, 8):
+        record = circular_shift(smooth_average(seed=seed, noise=1.5, teeth=teeth), 23 * SPM)
+        alignment = align_fingerprint(tooth_fingerprint(record, teeth), tooth_fingerprint(reference, teeth), teeth)
+        assert alignment.shift_teeth is None and alignment.refusal, (seed, alignment)
+
+
+def test_separation_of_a_perfect_fit_is_large_and_of_noise_small() -> None:
+    rng = np.random.default_rng(3)
+    reference = rng.normal(size=20 * SPM)
+    record = np.roll(reference, 5 * SPM) + 0.1 * rng.normal(size=reference.size)
+    assert shift_separation_z(record, reference, 5 * SPM, [4 * SPM, 6 * SPM, 15 * SPM], 20).min() > 10
+    noise = rng.normal(size=reference.size)
+    assert np.all(shift_separation_z(noise, reference, 0, [SPM, 2 * SPM], 20) < 4)
 
 
 def test_another_gear_or_pure_noise_is_refused_not_aligned() -> None:
