@@ -118,6 +118,14 @@ REFERENCE_SIGNATURES: dict[str, dict[str, float]] = {
 SIGNATURE_RTOL = 1e-7
 """The stored signatures have 10 significant digits; cross-CPU round-off is far below this."""
 
+SENSOR_SIGNATURE_RTOL = 2e-3
+"""For the accelerometer channels only (``rms acc*``): they pass through the structural-mode and
+anti-alias filters, discretised by ``scipy.signal.cont2discrete``/``ss2zpk`` (matrix exponential,
+eigenvalues: LAPACK), whose round-off differs between CPUs and BLAS builds. Measured on two AMD
+EPYC machines of this project's kind: 1.4e-5 … 4.1e-4 relative, while every mechanical signature
+agreed to 1e-9. An extension switched on still moves the mechanical signatures by 1e-4 or more,
+which the 1e-7 tolerance catches."""
+
 CASES = {
     "default": GearPairModel(acquisition=Acquisition(warmup_s=0.05)),
     "torsional": GearPairModel(dofs="torsional", acquisition=Acquisition(warmup_s=0.05)),
@@ -156,7 +164,8 @@ def test_defaults_give_records_identical_to_the_model_before_the_extensions(case
     want = REFERENCE_SIGNATURES[case]
     assert set(got) == set(want)
     for name, value in want.items():
-        assert got[name] == pytest.approx(value, rel=SIGNATURE_RTOL), name
+        tolerance = SENSOR_SIGNATURE_RTOL if name.startswith("rms acc") else SIGNATURE_RTOL
+        assert got[name] == pytest.approx(value, rel=tolerance), name
     assert not np.any(result.friction_force_n)
     assert not np.any(result.bearing_force_off_line_n["pinion"])
     if case == "rich":
