@@ -45,6 +45,9 @@ side of the baseline centre, see :class:`Baseline`):
   ``alarm`` again and must be acknowledged again; an acknowledged alarm stays acknowledged until
   it clears. After clearing, a new excursion opens a new alarm.
 * A non-finite value (NaN, ±inf) is ignored: it changes no counter.
+* **Self-referenced indicators** (:data:`SELF_REFERENCED_INDICATORS`, e.g. ``change``) are
+  already in noise units against the track's own history: their baseline is fixed at centre 0,
+  spread 1, and every value is scored.
 """
 
 from __future__ import annotations
@@ -86,8 +89,17 @@ INDICATOR_DIRECTIONS: dict[str, Direction] = {
     # per tooth, in standard errors of the record (dsp.toothscore)
     "score": "higher_is_worse",
     "mci_depth_se": "higher_is_worse",
+    # per tooth, against the tooth's own earlier waveform (dsp.toothchange)
+    "change": "higher_is_worse",
 }
 """Which way is worse for each indicator gearwatch computes."""
+
+SELF_REFERENCED_INDICATORS: frozenset[str] = frozenset({"change"})
+"""Indicators that are already a comparison with the track's own history, in noise units
+(:mod:`dsp.toothchange`: the tooth's waveform against the campaign's reference records, as a
+robust z over the record's teeth). Their baseline is fixed — centre 0, spread 1 — and scoring
+starts with the first value: learning a second baseline from the first change scores would
+only delay the first alarm by ``min_baseline_records`` and measure noise against noise."""
 
 
 def indicator_direction(indicator: str) -> Direction:
@@ -318,6 +330,8 @@ def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
     """
     if not math.isfinite(value):
         return Evaluation(state, None)
+    if state.baseline is None and rule.indicator in SELF_REFERENCED_INDICATORS:
+        state = replace(state, baseline=Baseline(0.0, 1.0, 0, rule.direction))
     if state.baseline is None:
         collected = (*state.baseline_values, float(value))
         if len(collected) < rule.first_scored_record:
@@ -363,7 +377,8 @@ def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
         cusum=cusum,
     )
     if (
-        len(state.baseline_values) < rule.baseline_records
+        rule.indicator not in SELF_REFERENCED_INDICATORS
+        and len(state.baseline_values) < rule.baseline_records
         and level == "normal"
         and score < rule.clear_level
         and cusum == 0.0

@@ -20,21 +20,23 @@ from gearwatch.floor.defaults import (
     REVOLUTION_OUTLIER_FACTOR,
     SAMPLES_PER_MESH,
 )
-from gearwatch.floor.results import METRIC_NAMES, TOOTH_INDICATORS
+from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
 
 Role = Literal["viewer", "operator", "admin"]
 AlarmState = Literal["warning", "alarm", "acknowledged", "cleared"]
 RecordStatus = Literal["accepted", "rejected", "pending"]
-ToothIndicatorName = Literal["mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score"]
+ToothIndicatorName = Literal[
+    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score", "change"
+]
 AlarmIndicatorName = Literal[
-    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score",
+    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score", "change",
     "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
     "raw_rms", "raw_kurtosis",
 ]  # fmt: skip
 CurveName = Literal["pinion_average", "gear_average", "difference", "mci_raw", "mci", "speed_rpm"]
 
-assert set(ToothIndicatorName.__args__) == set(TOOTH_INDICATORS)  # type: ignore[attr-defined]
-assert set(AlarmIndicatorName.__args__) == set(TOOTH_INDICATORS) | set(METRIC_NAMES)  # type: ignore[attr-defined]
+assert set(ToothIndicatorName.__args__) == set(STORED_TOOTH_INDICATORS)  # type: ignore[attr-defined]
+assert set(AlarmIndicatorName.__args__) == set(STORED_TOOTH_INDICATORS) | set(METRIC_NAMES)  # type: ignore[attr-defined]
 
 TIMESTAMP_EXAMPLE = "2026-03-02T08:00:00Z"
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from gearwatch.floor.results import METRIC_NAMES, TOOTH_INDICATORS
+from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
 
 Scope = Literal["tooth", "record"]
 
@@ -37,6 +37,7 @@ _INFO: dict[str, tuple[str, str]] = {
     "diff_energy": ("difference-signal energy", CHANNEL_UNIT_SQUARED),
     "diff_kurtosis": ("difference-signal kurtosis", ""),
     "score": ("per-tooth score", BASELINE_UNITS),
+    "change": ("change against the tooth's own history", "noise units"),
     "mci_depth_se": ("MCI depth standard error", "Np"),
     # whole record
     "rms": ("RMS of the pinion average", CHANNEL_UNIT),
@@ -56,8 +57,8 @@ _INFO: dict[str, tuple[str, str]] = {
 
 
 def tooth_indicators() -> tuple[str, ...]:
-    """Per-tooth indicators the pipeline stores (:data:`gearwatch.floor.results.TOOTH_INDICATORS`)."""
-    return tuple(TOOTH_INDICATORS)
+    """Per-tooth indicators gearwatch stores (:data:`gearwatch.floor.results.STORED_TOOTH_INDICATORS`)."""
+    return tuple(STORED_TOOTH_INDICATORS)
 
 
 def record_indicators() -> tuple[str, ...]:
@@ -71,7 +72,7 @@ def all_indicators() -> tuple[str, ...]:
 
 def indicator_info(name: str) -> IndicatorInfo:
     """Scope, title and unit template of a stored indicator (``ValueError`` if unknown)."""
-    if name in TOOTH_INDICATORS:
+    if name in STORED_TOOTH_INDICATORS:
         scope: Scope = "tooth"
     elif name in METRIC_NAMES:
         scope = "record"

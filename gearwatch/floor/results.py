@@ -36,7 +36,16 @@ its mean — the overall indicators that also see what the averages remove (non-
 such as bearings)."""
 
 TOOTH_INDICATORS = ("mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score")
-"""Per-tooth indicators, each stored as record × tooth × indicator."""
+"""Per-tooth indicators of one record's analysis, each stored as record × tooth × indicator."""
+
+HISTORY_TOOTH_INDICATORS = ("change",)
+"""Per-tooth indicators computed from the campaign's accepted records in ``taken_at`` order, not
+from one record alone (``change``: :mod:`dsp.toothchange`, the tooth's waveform against the
+campaign's reference records); stored like :data:`TOOTH_INDICATORS` once the campaign has
+enough records, and recomputed when a record arrives out of order."""
+
+STORED_TOOTH_INDICATORS = TOOTH_INDICATORS + HISTORY_TOOTH_INDICATORS
+"""Every per-tooth indicator a trend or an alarm rule can name."""
 
 
 @dataclass(frozen=True)

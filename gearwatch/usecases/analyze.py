@@ -505,7 +505,9 @@ def _analyze_channel(
         ),
         curves=curves,
         quality=quality,
-        baseline_stats=_baseline_stats(residual, average, pinion_teeth, baselines),
+        baseline_stats=_baseline_stats(residual, average, pinion_teeth, baselines) | (
+            {} if per_tooth_refused else {"tooth1_pitch_angle_deg": float(tooth1_pitch_angle_deg)}
+        ),
         tooth_frame=tooth_frame,
         frame_fingerprints=fingerprints,
     )

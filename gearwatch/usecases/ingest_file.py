@@ -354,6 +354,7 @@ def _store(
     """Write the outcome of an attempt: rejection, or results (+ alarms on first acceptance)."""
     from gearwatch.usecases.alarms import evaluate_record
     from gearwatch.usecases.running_baselines import lock_rig, refresh_running_baselines
+    from gearwatch.usecases.tooth_change import refresh_tooth_change
     from storage.repositories import RecordRepository, json_safe
 
     records = RecordRepository(session)
@@ -388,6 +389,7 @@ def _store(
     # records arrived in (before the alarm evaluation, which then sees the rescaled values).
     lock_rig(session, record.rig_id)
     refresh_running_baselines(session, record.campaign_id)
+    refresh_tooth_change(session, record.campaign_id)  # the per-tooth change, same order rule
     changes: tuple[Any, ...] = ()
     if first_acceptance:  # a record enters its campaign's tooth-frame reference once
         _fold_tooth_frames(session, record, analysis)

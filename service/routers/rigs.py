@@ -12,7 +12,7 @@ from sqlalchemy.orm import Session
 from starlette.concurrency import run_in_threadpool
 
 from gearwatch.floor.errors import InputError, NotFound
-from gearwatch.floor.results import TOOTH_INDICATORS
+from gearwatch.floor.results import STORED_TOOTH_INDICATORS
 from gearwatch.floor.settings import Settings
 from service import schemas
 from service.convert import rig_by_name, rig_out, rule_out
@@ -144,7 +144,7 @@ def _load_trend(
     rig = rig_by_name(db, rig_name)
     # The pinion tooth count is part of the version: it sets the columns of the answer.
     version: tuple[object, ...] = (rig.id, rig.pinion_teeth, *trend_version(db, rig.id))
-    if indicator not in TOOTH_INDICATORS:  # whole-record rows (rigs without teeth have no others)
+    if indicator not in STORED_TOOTH_INDICATORS:  # whole-record rows (rigs without teeth have no others)
 
         version += OperatorQueries(db).metric_version(rig.id)
     cache.confirm(rig_name, version)

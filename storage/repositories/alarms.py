@@ -12,7 +12,7 @@ from sqlalchemy.orm import selectinload
 
 from detection.default_rules import DEFAULT_RULES
 from gearwatch.floor.errors import Conflict, InputError
-from gearwatch.floor.results import METRIC_NAMES, TOOTH_INDICATORS
+from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
 from storage.models import (
     ALARM_STATES,
     Alarm,
@@ -25,7 +25,7 @@ from storage.models import (
 from storage.repositories.base import Repository, json_safe
 from storage.repositories.rigs import RigRepository
 
-ALARM_INDICATORS = TOOTH_INDICATORS + METRIC_NAMES
+ALARM_INDICATORS = STORED_TOOTH_INDICATORS + METRIC_NAMES
 """Indicators an alarm rule can watch: per tooth, or whole-record metrics (tooth 0)."""
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import sqlalchemy as sa
 
 from gearwatch.floor.errors import InputError
-from gearwatch.floor.results import METRIC_NAMES, TOOTH_INDICATORS
+from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
 from storage.models import (
     Campaign,
     Channel,
@@ -60,9 +60,9 @@ class TrendRepository(Repository[ToothIndicator]):
         """Per-tooth indicator over time (current result versions of accepted records), ordered
         by ``taken_at``, then channel (in creation order) and tooth. One query on the trend
         index, no join."""
-        if indicator not in TOOTH_INDICATORS:
+        if indicator not in STORED_TOOTH_INDICATORS:
             raise InputError(
-                f"unknown tooth indicator {indicator!r} (known: {', '.join(TOOTH_INDICATORS)})"
+                f"unknown tooth indicator {indicator!r} (known: {', '.join(STORED_TOOTH_INDICATORS)})"
             )
         ti = ToothIndicator
         query = (
@@ -91,9 +91,9 @@ class TrendRepository(Repository[ToothIndicator]):
         sorting (both cost more than the rest), no per-row objects; the rig's records, in time
         order from their index, give each record's row and time.
         """
-        if indicator not in TOOTH_INDICATORS:
+        if indicator not in STORED_TOOTH_INDICATORS:
             raise InputError(
-                f"unknown tooth indicator {indicator!r} (known: {', '.join(TOOTH_INDICATORS)})"
+                f"unknown tooth indicator {indicator!r} (known: {', '.join(STORED_TOOTH_INDICATORS)})"
             )
         ti = ToothIndicator
         query = sa.select(ti.record_id, ti.channel_id, ti.tooth, ti.value).where(

@@ -22,7 +22,7 @@ from detection.alarms import (
     run,
     step,
 )
-from gearwatch.floor.results import METRIC_NAMES, TOOTH_INDICATORS
+from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
 
 # Baseline of [10, 10, 10, 10] → centre 10, MAD 0, spread = floor = 5 % of 10 = 0.5.
 BASE = [10.0, 10.0, 10.0, 10.0]
@@ -79,7 +79,7 @@ def test_baseline_ignores_non_finite_and_refuses_empty() -> None:
 
 
 def test_directions_cover_every_indicator_and_larger_is_worse() -> None:
-    assert set(INDICATOR_DIRECTIONS) == set(TOOTH_INDICATORS) | set(METRIC_NAMES)
+    assert set(INDICATOR_DIRECTIONS) == set(STORED_TOOTH_INDICATORS) | set(METRIC_NAMES)
     assert indicator_direction("mci_depth") == "higher_is_worse"
     with pytest.raises(ValueError, match="unknown indicator"):
         indicator_direction("nonsense")

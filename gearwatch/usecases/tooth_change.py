@@ -1,0 +1,142 @@
+"""The ``change`` indicator: each tooth's waveform against the campaign's earlier records.
+
+:mod:`dsp.toothchange` scores a record's pinion average against the mean of the campaign's
+first accepted records (its reference); the score of a record therefore depends on the
+records taken before it, like NA4's running baseline (:mod:`gearwatch.usecases.running_baselines`).
+:func:`refresh_tooth_change` recomputes, after each accepted record, the ``change`` values of
+every accepted record of the campaign from the stored averages in ``taken_at`` order, and
+writes only what differs: in order, only the new record's values are written; a record that
+arrives late rewrites those of the records after it. The alarm evaluation that follows
+(:func:`gearwatch.usecases.alarms.evaluate_record`) replays the tracks of a late record, so the
+``change`` alarms are a function of the set of accepted records, whatever order they arrived in.
+
+A record enters the computation with its stored ``pinion_average`` curve and the tooth-1 pitch
+angle its analysis used (``baseline_stats["tooth1_pitch_angle_deg"]``; a tach-less record placed
+in the campaign's frame has the frame's angle). Records without it (analysed before the angle
+was kept, a refused tooth frame, no tooth counts) are left out. Nothing here commits.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import defaultdict
+
+import numpy as np
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from dsp.toothchange import campaign_change_scores
+from storage.models import (
+    Campaign,
+    ChannelResult,
+    Curve,
+    Record,
+    ResultVersion,
+    Rig,
+    ToothIndicator,
+    float32_array,
+)
+
+logger = logging.getLogger(__name__)
+
+INDICATOR = "change"
+TOOTH1_KEY = "tooth1_pitch_angle_deg"
+"""Key of ``ChannelResult.baseline_stats`` holding the tooth-1 angle of the stored average."""
+RELATIVE_TOLERANCE = 1e-9
+"""Stored values this close to the recomputed ones are kept (float32 curves, summation order)."""
+
+
+def refresh_tooth_change(session: Session, campaign_id: int) -> int:
+    """Bring the stored ``change`` values of the campaign's accepted records (current result
+    versions) in line with their ``taken_at`` order; returns how many rows were written or removed.
+
+    The caller holds the rig's lock (:func:`gearwatch.usecases.running_baselines.lock_rig`)."""
+    pinion_teeth = session.execute(
+        sa.select(Rig.pinion_teeth).join(Campaign, Campaign.rig_id == Rig.id)
+        .where(Campaign.id == campaign_id)
+    ).scalar_one_or_none()
+    if not pinion_teeth:
+        return 0
+    query = (
+        sa.select(ChannelResult, Record.id, Record.rig_id, Record.taken_at)
+        .join(ResultVersion, ResultVersion.id == ChannelResult.result_id)
+        .join(Record, Record.id == ResultVersion.record_id)
+        .where(Record.campaign_id == campaign_id, Record.status == "accepted",
+               ResultVersion.is_current.is_(True))
+        .order_by(ChannelResult.channel_id, Record.taken_at, Record.id)
+    )
+    by_channel: dict[int, list[tuple[ChannelResult, int, int, object]]] = defaultdict(list)
+    for channel_result, record_id, rig_id, taken_at in session.execute(query):
+        by_channel[channel_result.channel_id].append((channel_result, record_id, rig_id, taken_at))
+    written = 0
+    for channel_id, rows in by_channel.items():
+        written += _refresh_channel(session, int(pinion_teeth), channel_id, rows)
+    if written:
+        logger.info("campaign %s: %s per-tooth change value(s) written", campaign_id, written)
+    session.flush()
+    return written
+
+
+def _refresh_channel(
+    session: Session,
+    pinion_teeth: int,
+    channel_id: int,
+    rows: list[tuple[ChannelResult, int, int, object]],
+) -> int:
+    result_ids = [row[0].result_id for row in rows]
+    curves = dict(session.execute(
+        sa.select(Curve.result_id, Curve.data).where(
+            Curve.result_id.in_(result_ids), Curve.channel_id == channel_id,
+            Curve.name == "pinion_average")
+    ).all())
+    averages: list[np.ndarray | None] = []
+    angles: list[float] = []
+    for channel_result, *_ in rows:
+        angle = (channel_result.baseline_stats or {}).get(TOOTH1_KEY)
+        data = curves.get(channel_result.result_id)
+        samples = 0 if data is None else len(data) // 4
+        if (isinstance(angle, int | float) and math.isfinite(angle) and data is not None
+                and samples % pinion_teeth == 0 and samples >= 2 * pinion_teeth):
+            averages.append(float32_array(data).astype(np.float64))
+            angles.append(float(angle))
+        else:
+            averages.append(None)
+            angles.append(0.0)
+    try:
+        scores = campaign_change_scores(averages, angles, pinion_teeth)
+    except ValueError as error:  # an average without mesh content: no change values at all
+        logger.warning("channel %s: no per-tooth change values: %s", channel_id, error)
+        scores = [None] * len(rows)
+    stored: dict[tuple[int, int], ToothIndicator] = {
+        (item.result_id, item.tooth): item
+        for item in session.scalars(sa.select(ToothIndicator).where(
+            ToothIndicator.result_id.in_(result_ids), ToothIndicator.channel_id == channel_id,
+            ToothIndicator.indicator == INDICATOR))
+    }
+    written = 0
+    inserts: list[dict[str, object]] = []
+    for (channel_result, record_id, rig_id, taken_at), values in zip(rows, scores, strict=True):
+        result_id = channel_result.result_id
+        for tooth in range(1, pinion_teeth + 1):
+            row = stored.pop((result_id, tooth), None)
+            value = None if values is None else float(values[tooth - 1])
+            if value is None or not math.isfinite(value):
+                if row is not None:
+                    session.delete(row)
+                    written += 1
+                continue
+            if row is None:
+                inserts.append({"result_id": result_id, "channel_id": channel_id,
+                                "record_id": record_id, "rig_id": rig_id, "taken_at": taken_at,
+                                "tooth": tooth, "indicator": INDICATOR, "value": value})
+            elif not math.isclose(row.value, value, rel_tol=RELATIVE_TOLERANCE, abs_tol=1e-12):
+                row.value = value
+                written += 1
+    for row in stored.values():  # teeth beyond the rig's count (never expected): removed
+        session.delete(row)
+        written += 1
+    if inserts:
+        session.execute(sa.insert(ToothIndicator), inserts)
+        written += len(inserts)
+    return written

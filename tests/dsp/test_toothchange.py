@@ -1,0 +1,126 @@
+"""Known-answer tests of the per-tooth change (dsp.toothchange): where a new transient is
+named, what does not count as change (gain, load on the mesh harmonics, noise), and how often
+pure noise crosses the default rule's warning level."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from detection.default_rules import CHANGE_RULE
+from dsp.toothchange import (
+    REFERENCE_ADMIT_SCORE,
+    campaign_change_scores,
+    change_scores,
+    gain_free_spectrum,
+    tooth_change_energy,
+)
+
+SAMPLES_PER_MESH = 64
+WARNING = float(CHANGE_RULE["warning_level"])
+
+
+def gear(teeth: int, seed: int) -> np.ndarray:
+    """One pinion revolution: three mesh harmonics plus a fixed per-tooth signature (pitch
+    errors through a ringing path), the same every day."""
+    rng = np.random.default_rng(seed)
+    n = teeth * SAMPLES_PER_MESH
+    phase = 2 * np.pi * teeth * np.arange(n) / n
+    mesh = np.cos(phase) + 0.4 * np.cos(2 * phase + 0.5) + 0.2 * np.cos(3 * phase + 1.0)
+    signature = np.repeat(rng.normal(0.0, 0.05, teeth), SAMPLES_PER_MESH)
+    kernel = np.exp(-np.arange(48) / 12.0) * np.cos(2 * np.pi * np.arange(48) / 16.0)
+    ringing = np.real(np.fft.ifft(np.fft.fft(signature) * np.fft.fft(kernel, n)))
+    return mesh + ringing
+
+
+def transient(teeth: int, tooth: int, amplitude: float, tooth1_deg: float = 0.0) -> np.ndarray:
+    """A decaying burst starting at the tooth's pitch angle (a spall's impact)."""
+    n = teeth * SAMPLES_PER_MESH
+    start = round((tooth1_deg + (tooth - 1) * 360.0 / teeth) / 360.0 * n)
+    burst = np.zeros(n)
+    t = np.arange(SAMPLES_PER_MESH)
+    burst[:SAMPLES_PER_MESH] = amplitude * np.exp(-t / 20.0) * np.sin(2 * np.pi * t / 12.0)
+    return np.roll(burst, start)
+
+
+def campaign(teeth: int, days: int, noise: float, seed: int,
+             spall: tuple[int, int, float] | None = None, gains: dict[int, float] | None = None,
+             tooth1_deg: float = 0.0) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed + 1000)
+    base = gear(teeth, seed)
+    out = []
+    for day in range(1, days + 1):
+        average = base + noise * rng.standard_normal(base.size)
+        if spall is not None and day >= spall[1]:
+            # doubling each day, capped at half the mesh amplitude (a spall this size changes
+            # the mesh harmonics themselves, which set the gain normalisation)
+            amplitude = min(spall[2] * 2 ** (day - spall[1]), 0.5)
+            average = average + transient(teeth, spall[0], amplitude, tooth1_deg)
+        out.append(average * (gains or {}).get(day, 1.0))
+    return out
+
+
+@pytest.mark.parametrize(("teeth", "tooth"), [(13, 5), (20, 16), (43, 1), (80, 77)])
+def test_a_new_transient_is_named_on_its_tooth_from_the_day_it_appears(
+    teeth: int, tooth: int
+) -> None:
+    days = campaign(teeth, 7, noise=0.02, seed=teeth, spall=(tooth, 5, 0.12), tooth1_deg=33.0)
+    scores = campaign_change_scores(days, [33.0] * 7, teeth)
+    assert scores[0] is None and scores[1] is None
+    for day in (3, 4):
+        assert float(np.max(scores[day - 1])) < WARNING  # healthy days: nothing stands out
+    for day in (5, 6, 7):
+        assert int(np.argmax(scores[day - 1])) + 1 == tooth
+        assert float(np.max(scores[day - 1])) > WARNING
+
+
+def test_a_gain_step_and_a_mesh_harmonic_change_are_not_a_change() -> None:
+    teeth = 31
+    days = campaign(teeth, 7, noise=0.02, seed=5, gains={5: 2.0, 6: 2.0, 7: 0.5})
+    n = teeth * SAMPLES_PER_MESH
+    phase = 2 * np.pi * teeth * np.arange(n) / n
+    days[3] = days[3] + 0.3 * np.cos(phase + 0.2) + 0.1 * np.cos(2 * phase)  # load: the mesh
+    scores = campaign_change_scores(days, [0.0] * 7, teeth)
+    assert all(float(np.max(s)) < WARNING for s in scores[2:] if s is not None)
+
+
+def test_a_spall_in_the_reference_days_is_not_learned_as_normal() -> None:
+    """A record that stands out does not join the reference, so the change keeps growing."""
+    teeth = 25
+    days = campaign(teeth, 8, noise=0.02, seed=9, spall=(11, 4, 0.1))
+    scores = campaign_change_scores(days, [0.0] * 8, teeth)
+    tooth11 = [float(s[10]) for s in scores[3:] if s is not None]
+    assert tooth11[0] < REFERENCE_ADMIT_SCORE < tooth11[1]  # day 4 joins the reference, 5 does not
+    assert tooth11[2] > tooth11[1]  # measured against the healthy days, it keeps growing
+    assert min(tooth11[1:]) > WARNING
+
+
+def test_pure_noise_crosses_the_warning_level_in_under_one_percent_of_records() -> None:
+    """The false-alarm rate of one record's highest tooth at the rule's warning level, with
+    the record's own noise as the only difference from its reference (80 and 20 teeth)."""
+    crossings = records = 0
+    for seed in range(150):
+        for teeth in (20, 80):
+            days = campaign(teeth, 4, noise=0.05, seed=seed)
+            for scores in campaign_change_scores(days, [0.0] * 4, teeth)[2:]:
+                assert scores is not None
+                records += 1
+                crossings += float(np.max(scores)) > WARNING
+    assert records == 600
+    assert crossings / records < 0.01
+
+
+def test_edge_cases() -> None:
+    with pytest.raises(ValueError, match="mesh-harmonic"):
+        gain_free_spectrum(np.zeros(40), 10)
+    with pytest.raises(ValueError, match="multiple of pinion_teeth"):
+        gain_free_spectrum(np.ones(41), 10)
+    with pytest.raises(ValueError, match="three teeth"):
+        change_scores([1.0, 2.0])
+    assert np.all(np.isfinite(change_scores(np.ones(10))))  # noise-free: spread floor
+    # averages of another length (samples per mesh changed) are not compared with each other
+    days = [*campaign(10, 3, 0.02, 1), np.repeat(campaign(10, 1, 0.02, 1)[0], 2)]
+    assert campaign_change_scores(days, [0.0] * 4, 10)[3] is None
+    assert campaign_change_scores([None, *days[:3]], [0.0] * 4, 10)[0] is None
+    energy = tooth_change_energy(transient(20, 4, 1.0), 20, 0.0)
+    assert int(np.argmax(energy)) + 1 == 4

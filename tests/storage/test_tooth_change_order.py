@@ -1,0 +1,91 @@
+"""The ``change`` indicator in the database: stored per tooth once a campaign has its reference
+records, a function of the accepted records ordered by ``taken_at`` whatever order they arrive
+in (a late record rewrites the values after it), and alarmed on the tooth that changed."""
+
+from __future__ import annotations
+
+import datetime as dt
+import random
+
+import numpy as np
+import pytest
+import sqlalchemy as sa
+from sqlalchemy.orm import Session
+
+from detection.default_rules import CHANGE_RULE
+from gearwatch.usecases.alarms import evaluate_record
+from gearwatch.usecases.running_baselines import lock_rig
+from gearwatch.usecases.tooth_change import refresh_tooth_change
+from storage.models import ToothIndicator
+from storage.repositories import (
+    AlarmRepository,
+    AlarmRuleRepository,
+    CampaignRepository,
+    RecordRepository,
+)
+from tests.dsp.test_toothchange import campaign as simulated_days
+from tests.storage.evaluation_snapshot import evaluation_snapshot
+from tests.storage.factories import T0, analysis, campaign_config
+
+TEETH = 20
+DAYS = 9
+SPALL_TOOTH, ONSET = 7, 6
+TOOTH1_DEG = 9.0  # campaign_config's rig
+
+
+def _ingest(session: Session, tag: str, order: list[int]) -> int:
+    campaign = CampaignRepository(session).ensure(campaign_config(f"camp-{tag}", f"rig-{tag}"))
+    AlarmRuleRepository(session).create(campaign.rig_id, "change", **CHANGE_RULE)
+    session.commit()
+    averages = simulated_days(TEETH, DAYS, noise=0.02, seed=3, spall=(SPALL_TOOTH, ONSET, 0.12),
+                              tooth1_deg=TOOTH1_DEG)
+    records = RecordRepository(session)
+    for index in order:
+        sha256 = f"{index:04x}".ljust(63, "0") + tag
+        record = records.add(campaign, sha256=sha256, file_name=f"r{index}.wav",
+                             raw_location=f"/raw/{sha256}.wav",
+                             taken_at=T0 + dt.timedelta(days=index))
+        result_analysis = analysis(sha256=sha256, teeth=TEETH, curve_length=TEETH * 64,
+                                   baseline_stats={"tooth1_pitch_angle_deg": TOOTH1_DEG})
+        result_analysis.channels[0].curves["pinion_average"] = averages[index].astype(np.float32)
+        records.mark_accepted(record, result_analysis)
+        result = records.add_result(record, result_analysis)
+        lock_rig(session, record.rig_id)
+        refresh_tooth_change(session, record.campaign_id)
+        evaluate_record(session, record, result)
+        session.commit()
+    return campaign.rig_id
+
+
+def _stored_changes(session: Session, rig_id: int) -> dict[tuple[dt.datetime, int], float]:
+    rows = session.execute(
+        sa.select(ToothIndicator.taken_at, ToothIndicator.tooth, ToothIndicator.value)
+        .where(ToothIndicator.rig_id == rig_id, ToothIndicator.indicator == "change")
+    ).all()
+    return {(taken_at, tooth): value for taken_at, tooth, value in rows}
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_change_values_and_alarms_do_not_depend_on_arrival_order(
+    db_session: Session, seed: int
+) -> None:
+    sequential = _ingest(db_session, "a", list(range(DAYS)))
+    order = list(range(DAYS))
+    random.Random(seed).shuffle(order)
+    assert order != sorted(order)
+    shuffled = _ingest(db_session, "b", order)
+
+    expected = _stored_changes(db_session, sequential)
+    # the first two records are the reference: no change values for them
+    assert len(expected) == (DAYS - 2) * TEETH
+    got = _stored_changes(db_session, shuffled)
+    assert got.keys() == expected.keys()
+    for key, value in expected.items():
+        assert got[key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
+    assert evaluation_snapshot(db_session, shuffled) == evaluation_snapshot(db_session, sequential)
+
+    # the spalled tooth, and only it, is alarmed, from the onset record on
+    alarms = AlarmRepository(db_session).list(rig_id=sequential)
+    assert {a.tooth for a in alarms} == {SPALL_TOOTH}
+    first = min(a.raised_at for a in alarms)
+    assert first == T0 + dt.timedelta(days=ONSET - 1)
