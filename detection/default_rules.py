@@ -66,9 +66,10 @@ DEFAULT_RULES: dict[str, dict[str, Any]] = {
     },
     "change": CHANGE_RULE,
     "fm4": dict(WHOLE_RECORD_RULE),
-    # No default NA4 rule: a record's NA4 is normalised by the running baseline of the records
-    # *stored* before it, so with parallel workers its value depends on arrival order, and alarm
-    # states must not (tests/gearwatch/test_workers_order.py). An operator may still add the rule.
+    # NA4 divides by the running baseline of the records taken before it; stored values follow the
+    # campaign's taken_at order whatever order records arrive in (usecases.running_baselines),
+    # and a late record replays the NA4 track (tests/gearwatch/test_workers_order.py)
+    "na4": dict(WHOLE_RECORD_RULE),
     "kurtosis": dict(WHOLE_RECORD_RULE),
     "raw_kurtosis": dict(WHOLE_RECORD_RULE),
 }
@@ -92,7 +93,7 @@ tooth-days (``tests/detection/test_alarms.py``). It is meant to replace the form
 0.1 Np spread floor (which is too strict on a noisy record and too lax on a clean one: an
 8 µm spall scored ~3 units and never alarmed in the independent simulator's campaigns).
 
-The whole-record rules (:data:`WHOLE_RECORD_RULE`): FM4 of the average, the kurtosis
+The whole-record rules (:data:`WHOLE_RECORD_RULE`): FM4 and NA4 of the average, the kurtosis
 of the average and of the raw signal (these two work without tooth counts; the raw one also
 sees non-synchronous faults such as bearings, which averaging removes). Measured performance
 of every default rule: ``benchmarks/bench_detection.py`` (its docstring and the README)."""

@@ -314,7 +314,7 @@ def test_alarm_rule_crud_and_validation(db_session: Session) -> None:
     rules = AlarmRuleRepository(db_session)
     defaults = rules.ensure_defaults(campaign.rig_id)
     assert sorted(r.indicator for r in defaults) == [
-        "fm4", "kurtosis", "mci_depth", "raw_kurtosis", "score",
+        "change", "fm4", "kurtosis", "mci_depth", "na4", "raw_kurtosis", "score",
     ]
     assert len(rules.ensure_defaults(campaign.rig_id)) == len(DEFAULT_RULES)  # idempotent
     score = next(r for r in defaults if r.indicator == "score")
