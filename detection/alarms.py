@@ -61,8 +61,6 @@ from typing import Any, Literal
 import numpy as np
 from scipy import stats
 
-from gearwatch.floor.defaults import MAD_TO_SIGMA
-
 Direction = Literal["higher_is_worse", "lower_is_worse"]
 Level = Literal["normal", "warning", "alarm"]
 TransitionKind = Literal["warning", "alarm", "cleared"]
@@ -229,9 +227,8 @@ def learn_baseline(
     if array.size == 0:
         raise ValueError("a baseline needs at least one finite value")
     centre = float(np.median(array))
-    mad = float(np.median(np.abs(array - centre)))
     floor = max(spread_floor_fraction * abs(centre), spread_floor_abs)
-    spread = MAD_TO_SIGMA * mad
+    spread = float(stats.median_abs_deviation(array, scale="normal"))
     if widen_small_samples:
         spread *= small_sample_factor(int(array.size))
     return Baseline(centre, max(spread, floor), int(array.size), direction)

@@ -13,7 +13,6 @@ from hypothesis import strategies as st
 
 from detection.alarms import (
     INDICATOR_DIRECTIONS,
-    MAD_TO_SIGMA,
     RuleSettings,
     TrackState,
     acknowledge,
@@ -22,6 +21,7 @@ from detection.alarms import (
     run,
     step,
 )
+from gearwatch.floor.defaults import MAD_TO_SIGMA
 from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
 
 # Baseline of [10, 10, 10, 10] → centre 10, MAD 0, spread = floor = 5 % of 10 = 0.5.
@@ -54,7 +54,8 @@ def test_baseline_is_median_and_scaled_mad_against_statistics_module() -> None:
     mad = statistics.median(abs(x - centre) for x in values)
     baseline = learn_baseline(values, spread_floor_fraction=0.0)
     assert baseline.centre == centre == 5.0
-    assert baseline.spread == pytest.approx(1.4826 * mad)
+    # scipy's scale="normal" is 1/Φ⁻¹(3/4) = 1.4826022…, 1.5e-6 relative above 1.4826.
+    assert baseline.spread == pytest.approx(1.4826 * mad, rel=2e-6)
     assert baseline.count == 7
 
 
@@ -69,7 +70,7 @@ def test_spread_floor_relative_and_absolute() -> None:
     assert learn_baseline([2.0, 2.0, 2.0]).spread == pytest.approx(0.1)
     assert learn_baseline([0.0, 0.0, 0.0], spread_floor_abs=1e-3).spread == 1e-3
     # A real spread above the floor is kept.
-    assert learn_baseline([1.0, 2.0, 3.0]).spread == pytest.approx(1.4826)
+    assert learn_baseline([1.0, 2.0, 3.0]).spread == pytest.approx(1.4826, rel=2e-6)
 
 
 def test_baseline_ignores_non_finite_and_refuses_empty() -> None:
