@@ -84,6 +84,12 @@ whole wheel."""
 SHARED_SIDEBANDS = 1
 """Shaft-order sidebands removed on each side of every mesh harmonic."""
 
+RESOLUTION_ENERGY_FRACTION = 1e-10
+"""A sector's change energy is never taken below this fraction of the reference's mean sector
+energy (an amplitude of 1e-5 of the signal): the stored averages are float32 (resolution ~1e-7),
+so a smaller change is round-off, and identical noise-free records must score 0, not round-off
+divided by a tiny spread."""
+
 _MIN_LOG_SPREAD = 1e-3
 """Smallest spread of ``ln E`` over the teeth (nepers) used as the score's unit."""
 
@@ -222,6 +228,15 @@ def change_scores(energy: ArrayLike) -> NDArray[np.float64]:
     return scores
 
 
+def _usable_spectrum(average: ArrayLike, pinion_teeth: int) -> NDArray[np.complex128] | None:
+    """:func:`gain_free_spectrum`, or ``None`` for an average it cannot normalise (no mesh
+    content: a dead or disconnected sensor that day) — that record is left out, not the campaign."""
+    try:
+        return gain_free_spectrum(average, pinion_teeth)
+    except ValueError:
+        return None
+
+
 def campaign_change_scores(
     averages: Sequence[ArrayLike | None],
     tooth1_pitch_angles_deg: Sequence[float],
@@ -239,7 +254,8 @@ def campaign_change_scores(
     ----------
     averages : sequence of (array_like of float or None)
         Each accepted record's pinion average in the campaign's tooth frame, in ``taken_at``
-        order; ``None`` for a record without one (it is skipped and gets ``None``).
+        order; ``None`` for a record without one (it is skipped and gets ``None``, as does an
+        average without mesh-harmonic content, which cannot be put on the common gain).
     tooth1_pitch_angles_deg : sequence of float
         Tooth 1's pitch angle in each average.
     pinion_teeth : int
@@ -274,10 +290,8 @@ def campaign_change_scores(
     if len(tooth1_pitch_angles_deg) != len(averages):
         raise ValueError("one tooth-1 angle per average")
     lengths = [0 if average is None else np.asarray(average).size for average in averages]
-    spectra: list[NDArray[np.complex128] | None] = [
-        None if average is None else gain_free_spectrum(average, pinion_teeth)
-        for average in averages
-    ]
+    spectra = [None if average is None else _usable_spectrum(average, pinion_teeth)
+               for average in averages]
     out: list[NDArray[np.float64] | None] = []
     admitted: list[int] = []  # indices of the records in the reference, in taken_at order
     for index, spectrum in enumerate(spectra):
@@ -292,7 +306,9 @@ def campaign_change_scores(
             energy = tooth_change_energy(
                 change, pinion_teeth, tooth1_pitch_angles_deg[index], lag_pitch=lag_pitch
             )
-            scores = change_scores(energy)
+            reference_wave = np.fft.irfft(reference, lengths[index])
+            floor = RESOLUTION_ENERGY_FRACTION * float(np.sum(reference_wave**2)) / pinion_teeth
+            scores = change_scores(np.fmax(energy, floor))
         if len(earlier) < reference_records and (
             scores is None or float(np.max(scores)) <= REFERENCE_ADMIT_SCORE
         ):

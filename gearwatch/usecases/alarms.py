@@ -380,10 +380,12 @@ def replay_tracks(
                                        stored.last_score))
                 session.delete(stored)
         history = histories[key]
-        rules_repo.save_track(
-            rule.id, channel_id, tooth, state.to_dict(),
-            history[-1].taken_at if history else None,  # type: ignore[arg-type]
-        )
+        if history:
+            rules_repo.save_track(rule.id, channel_id, tooth, state.to_dict(), history[-1].taken_at)
+        else:  # no value left (a history indicator recomputed away): as if never evaluated
+            session.execute(sa.delete(AlarmTrack).where(
+                AlarmTrack.rule_id == rule.id, AlarmTrack.channel_id == channel_id,
+                AlarmTrack.tooth == tooth))
     session.flush()
     return changes
 

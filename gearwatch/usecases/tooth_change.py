@@ -103,11 +103,7 @@ def _refresh_channel(
         else:
             averages.append(None)
             angles.append(0.0)
-    try:
-        scores = campaign_change_scores(averages, angles, pinion_teeth)
-    except ValueError as error:  # an average without mesh content: no change values at all
-        logger.warning("channel %s: no per-tooth change values: %s", channel_id, error)
-        scores = [None] * len(rows)
+    scores = campaign_change_scores(averages, angles, pinion_teeth)
     stored: dict[tuple[int, int], ToothIndicator] = {
         (item.result_id, item.tooth): item
         for item in session.scalars(sa.select(ToothIndicator).where(

@@ -124,3 +124,17 @@ def test_edge_cases() -> None:
     assert campaign_change_scores([None, *days[:3]], [0.0] * 4, 10)[0] is None
     energy = tooth_change_energy(transient(20, 4, 1.0), 20, 0.0)
     assert int(np.argmax(energy)) + 1 == 4
+
+
+def test_a_record_without_mesh_content_is_left_out_not_the_campaign() -> None:
+    days = campaign(20, 5, noise=0.02, seed=2)
+    days[2] = np.zeros_like(days[2])  # a dead sensor that day
+    scores = campaign_change_scores(days, [0.0] * 5, 20)
+    assert scores[2] is None
+    assert scores[3] is not None and scores[4] is not None
+
+
+def test_identical_noise_free_records_score_zero_not_round_off() -> None:
+    days = [gear(30, 4).astype(np.float32).astype(np.float64) for _ in range(4)]
+    for scores in campaign_change_scores(days, [0.0] * 4, 30)[2:]:
+        assert scores is not None and np.allclose(scores, 0.0)

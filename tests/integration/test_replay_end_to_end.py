@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from gearwatch.floor.campaign import Campaign, RecordData
-from gearwatch.floor.results import TOOTH_INDICATORS
+from gearwatch.floor.results import HISTORY_TOOTH_INDICATORS, TOOTH_INDICATORS
 from gearwatch.usecases.ingest_file import JobResult, parse_taken_at, process_file
 from gearwatch.usecases.replay import ReplaySummary, replay_campaign
 from ingest.can.assembler import AssembledRecord, RecordAssembler
@@ -424,7 +424,9 @@ def test_can_replay_stores_exactly_what_the_file_replay_stores(
     assert len(from_files) == len(over_can) == CAMPAIGN_DAYS
     for day, (expected, got) in enumerate(zip(from_files, over_can, strict=True), start=1):
         assert got["status"] == expected["status"] == "accepted", day
-        assert len(got["result"]["teeth"]) == 20 * len(TOOTH_INDICATORS), day
+        # the change indicator from the third record on (two reference records before it)
+        expected_indicators = TOOTH_INDICATORS + (HISTORY_TOOTH_INDICATORS if day > 2 else ())
+        assert len(got["result"]["teeth"]) == 20 * len(expected_indicators), day
         for key in expected:
             if key == "result":
                 for part in expected["result"]:
