@@ -29,7 +29,8 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from storage.models import ChannelResult, Record, RecordMetric, ResultVersion, Rig
+from storage.models import ChannelResult, RecordMetric, Rig
+from storage.repositories import RecordRepository
 
 logger = logging.getLogger(__name__)
 
@@ -112,16 +113,10 @@ def refresh_running_baselines(session: Session, campaign_id: int) -> int:
 
     The caller holds the rig's lock (:func:`lock_rig`) so that two workers see each other's
     records; in ``taken_at`` order with nothing late, nothing changes."""
-    query = (
-        sa.select(ChannelResult, Record.id, ResultVersion.id, Record.taken_at)
-        .join(ResultVersion, ResultVersion.id == ChannelResult.result_id)
-        .join(Record, Record.id == ResultVersion.record_id)
-        .where(Record.campaign_id == campaign_id, Record.status == "accepted",
-               ResultVersion.is_current.is_(True))
-        .order_by(ChannelResult.channel_id, Record.taken_at, Record.id)
-    )
     by_channel: dict[int, list[_Row]] = defaultdict(list)
-    for channel_result, record_id, result_id, taken_at in session.execute(query):
+    for channel_result, record_id, result_id, _, taken_at in RecordRepository(
+        session
+    ).current_channel_results(campaign_id):
         by_channel[channel_result.channel_id].append(
             _Row(channel_result, record_id, result_id, channel_result.channel_id, taken_at))
     changed = 0

@@ -31,12 +31,11 @@ from storage.models import (
     Campaign,
     ChannelResult,
     Curve,
-    Record,
-    ResultVersion,
     Rig,
     ToothIndicator,
     float32_array,
 )
+from storage.repositories import RecordRepository
 
 logger = logging.getLogger(__name__)
 
@@ -58,16 +57,10 @@ def refresh_tooth_change(session: Session, campaign_id: int) -> int:
     ).scalar_one_or_none()
     if not pinion_teeth:
         return 0
-    query = (
-        sa.select(ChannelResult, Record.id, Record.rig_id, Record.taken_at)
-        .join(ResultVersion, ResultVersion.id == ChannelResult.result_id)
-        .join(Record, Record.id == ResultVersion.record_id)
-        .where(Record.campaign_id == campaign_id, Record.status == "accepted",
-               ResultVersion.is_current.is_(True))
-        .order_by(ChannelResult.channel_id, Record.taken_at, Record.id)
-    )
     by_channel: dict[int, list[tuple[ChannelResult, int, int, object]]] = defaultdict(list)
-    for channel_result, record_id, rig_id, taken_at in session.execute(query):
+    for channel_result, record_id, _, rig_id, taken_at in RecordRepository(
+        session
+    ).current_channel_results(campaign_id):
         by_channel[channel_result.channel_id].append((channel_result, record_id, rig_id, taken_at))
     written = 0
     for channel_id, rows in by_channel.items():

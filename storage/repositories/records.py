@@ -357,6 +357,22 @@ class RecordRepository(Repository[Record]):
         )
         return list(self.session.scalars(query))
 
+    def current_channel_results(
+        self, campaign_id: int
+    ) -> builtins.list[tuple[ChannelResult, int, int, int, dt.datetime]]:
+        """``(channel result, record id, result id, rig id, taken_at)`` of the campaign's accepted
+        records' current result versions, by channel, then ``taken_at`` (ties: record id) — the
+        order every value computed from a campaign's history follows."""
+        query = (
+            sa.select(ChannelResult, Record.id, ResultVersion.id, Record.rig_id, Record.taken_at)
+            .join(ResultVersion, ResultVersion.id == ChannelResult.result_id)
+            .join(Record, Record.id == ResultVersion.record_id)
+            .where(Record.campaign_id == campaign_id, Record.status == "accepted",
+                   ResultVersion.is_current.is_(True))
+            .order_by(ChannelResult.channel_id, Record.taken_at, Record.id)
+        )
+        return [tuple(row) for row in self.session.execute(query)]  # type: ignore[misc]
+
     def mean_baseline_stats(
         self, campaign_id: int, channel: str, *, before: dt.datetime, limit: int | None = None
     ) -> dict[str, float]:
