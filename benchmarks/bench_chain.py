@@ -23,6 +23,20 @@ file with its ``campaign.toml``, and each side runs as a fresh process on that f
 --reference-file FILE`` (the straightforward chain above, reading the file with
 ``scipy.io.wavfile``) — imports, compilation (numba's on-disk cache warmed by one untimed run of
 each), reading and the chain included; ``gearwatch --help`` is timed too.
+
+Measured 2026-11-27 (2-core machine, otherwise idle; ``--whole-process --seconds 300 --repeat 3``)::
+
+    | process                              | wall s | CPU s | CPU ratio to the reference |
+    | `python -c pass`                     | 0.048  | 0.047 |                            |
+    | `gearwatch --help`                   | 0.128  | 0.127 |                            |
+    | `gearwatch analyze --json`           | 2.143  | 2.345 | 1.9× less                  |
+    | straightforward scipy script         | 4.314  | 4.464 | 1                          |
+
+(before ``dsp.toothscore`` stopped importing ``scipy.stats``: 3.33 s, 1.6×). The issue's ≥ 5× is
+not reached: of the 2.1 s, ~0.85 s are imports (numba 0.25, ``scipy.interpolate`` 0.2,
+``scipy.ndimage`` 0.3 for the MCI's median filter — a numpy running median would save the import
+but cost 3–11 ms per row, 25–100 ms per record in a worker), ~0.35 s loading numba's cached
+kernels, ~1 s the chain itself (sample checks 0.4 s, angle averages with the jackknife groups 0.45 s).
 """
 
 from __future__ import annotations

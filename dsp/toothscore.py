@@ -62,9 +62,10 @@ level that the highest of ``Z`` pure-noise scores exceeds with probability
 
 from __future__ import annotations
 
+from statistics import NormalDist
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
 
 JACKKNIFE_GROUPS = 8
 """Groups of revolutions for the jackknife SE (revolution ``r`` → group ``r mod K``).
@@ -256,7 +257,8 @@ def standout_threshold(
     if teeth < 1 or not 0.0 < false_rate < 1.0:
         raise ValueError("pinion_teeth must be ≥ 1 and false_rate in (0, 1)")
     per_tooth = 1.0 - (1.0 - false_rate) ** (1.0 / teeth)
-    return float(stats.norm.isf(per_tooth))
+    # the standard library's inverse normal CDF: importing scipy.stats costs 0.6 s per process
+    return float(NormalDist().inv_cdf(1.0 - per_tooth))
 
 
 def standout_tooth(
