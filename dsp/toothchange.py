@@ -100,6 +100,10 @@ divided by a tiny spread."""
 
 SIGNATURE_PROJECTION = False
 
+MIN_MESH_ENERGY_FRACTION = 1e-4
+"""An average whose mesh harmonics hold less than this share of its energy (−40 dB) has no mesh
+content to normalise by (a real gear's hold several per cent or more): round-off would set the gain."""
+
 _MIN_LOG_SPREAD = 1e-3
 """Smallest spread of ``ln E`` over the teeth (nepers) used as the score's unit."""
 
@@ -135,7 +139,8 @@ def gain_free_spectrum(average: ArrayLike, pinion_teeth: int) -> NDArray[np.comp
         )
     spectrum = np.fft.rfft(values)
     mesh_energy = float(np.sum(np.abs(spectrum[teeth::teeth]) ** 2))
-    if not np.isfinite(mesh_energy) or mesh_energy <= 0.0:
+    total_energy = float(np.sum(np.abs(spectrum[1:]) ** 2))
+    if not np.isfinite(mesh_energy) or mesh_energy <= MIN_MESH_ENERGY_FRACTION * total_energy:
         raise ValueError("the average has no mesh-harmonic content to normalise by")
     out: NDArray[np.complex128] = spectrum / np.sqrt(mesh_energy)
     return out

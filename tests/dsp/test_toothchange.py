@@ -138,3 +138,11 @@ def test_identical_noise_free_records_score_zero_not_round_off() -> None:
     days = [gear(30, 4).astype(np.float32).astype(np.float64) for _ in range(4)]
     for scores in campaign_change_scores(days, [0.0] * 4, 30)[2:]:
         assert scores is not None and np.allclose(scores, 0.0)
+
+
+def test_an_average_without_mesh_harmonics_beyond_round_off_has_no_change() -> None:
+    n = 20 * SAMPLES_PER_MESH
+    shaft_only = np.sin(2 * np.pi * np.arange(n) / n) + 1e-9 * np.cos(2 * np.pi * 20 * np.arange(n) / n)
+    with pytest.raises(ValueError, match="mesh-harmonic"):
+        gain_free_spectrum(shaft_only, 20)
+    assert campaign_change_scores([shaft_only] * 4, [0.0] * 4, 20) == [None] * 4
