@@ -3,6 +3,12 @@
 One scenario per class (the full-size run is ``benchmarks/bench_reconcile.py --blinded``).
 The truth differs from the fitting model by the hidden physics and by model-form error
 (finer integration step, base parameters perturbed within tolerance).
+
+The ``out_of_catalogue`` class is not run here: its one scenario took 244 s of CPU (forward
+selection tries every mechanism before it gives up), more than the four others together, and
+CI must stay under 15 minutes. That an effect the catalogue cannot shape is reported as not
+explained is tested on a foreign spall shape in ``test_model_form.py`` and measured at scale by
+the benchmark (6/6 flagged in its last run).
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from physics.reconcile.scenarios import draw_scenarios, measured_of, score, scor
 
 from .conftest import fast_options
 
-CLASSES = ["control", "below_raw_floor", "occupied", "gear_shaft", "out_of_catalogue"]
+CLASSES = ["control", "below_raw_floor", "occupied", "gear_shaft"]
 
 
 @pytest.fixture(scope="module")
@@ -48,9 +54,3 @@ def test_in_catalogue_mechanism_named_located_and_measured(graded: list[dict[str
     # near-floor run is held to 25 %.
     assert float(row["parameter_error"]) <= 0.25, row  # type: ignore[arg-type]
     assert row["status"] == "explained", row
-
-
-@pytest.mark.slow
-def test_out_of_catalogue_physics_is_not_reported_as_explained(graded: list[dict[str, object]]) -> None:
-    row = _row(graded, "out_of_catalogue")
-    assert row["flagged_not_explained"] is True, row
