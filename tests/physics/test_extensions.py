@@ -121,7 +121,7 @@ SIGNATURE_RTOL = 1e-7
 SENSOR_SIGNATURE_RTOL = 2e-3
 """For the accelerometer channels only (``rms acc*``): they pass through the structural-mode and
 anti-alias filters, discretised by ``scipy.signal.cont2discrete``/``ss2zpk`` (matrix exponential,
-eigenvalues: LAPACK), whose round-off differs between CPUs and BLAS builds. Measured on two AMD
+eigenvalues: LAPACK) — the likely source, since only these channels differ between machines. Measured on two AMD
 EPYC machines of this project's kind: 1.4e-5 … 4.1e-4 relative, while every mechanical signature
 agreed to 1e-9. An extension switched on still moves the mechanical signatures by 1e-4 or more,
 which the 1e-7 tolerance catches."""
