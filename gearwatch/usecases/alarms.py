@@ -107,11 +107,14 @@ def evaluate_record(session: Session, record: Record, result: ResultVersion) -> 
     changes: list[AlarmChange] = []
     for rule in rules_repo.list(record.rig_id, enabled_only=True):
         rule_values = values.get(rule.indicator)
-        if rule.indicator in HISTORY_TOOTH_INDICATORS:
+        from_history = rule.indicator in HISTORY_TOOTH_INDICATORS
+        if not rule_values and not from_history:
+            continue
+        tracks = {(t.channel_id, t.tooth): t for t in rules_repo.tracks(rule.id)}
+        if from_history:
             # A late record may have rewritten the values of every record after it
             # (gearwatch.usecases.tooth_change), even when it has none of its own (a reference
             # record): every track it is not newer than is replayed.
-            tracks = {(t.channel_id, t.tooth): t for t in rules_repo.tracks(rule.id)}
             stale = {key for key, track in tracks.items()
                      if track.last_taken_at is not None and record.taken_at <= track.last_taken_at}
             if stale:
@@ -120,7 +123,6 @@ def evaluate_record(session: Session, record: Record, result: ResultVersion) -> 
                 continue
         if not rule_values:
             continue
-        tracks = {(t.channel_id, t.tooth): t for t in rules_repo.tracks(rule.id)}
         late = {
             (channel_id, tooth)
             for channel_id, tooth, _ in rule_values

@@ -27,6 +27,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from dsp.toothchange import campaign_change_scores
+from gearwatch.floor.results import HISTORY_TOOTH_INDICATORS
 from storage.models import (
     Campaign,
     ChannelResult,
@@ -39,7 +40,7 @@ from storage.repositories import RecordRepository
 
 logger = logging.getLogger(__name__)
 
-INDICATOR = "change"
+(INDICATOR,) = HISTORY_TOOTH_INDICATORS  # "change", the one history indicator
 TOOTH1_KEY = "tooth1_pitch_angle_deg"
 """Key of ``ChannelResult.baseline_stats`` holding the tooth-1 angle of the stored average."""
 RELATIVE_TOLERANCE = 1e-9
