@@ -132,6 +132,21 @@ many campaigns the spall's change in the average stays below the average's own n
 90–170 revolutions). The remaining healthy-campaign alarms are on low-noise rigs (noise 0.3–0.5×
 the signal), where what is left of the day's load and speed change in a tooth's signature after
 the projection is of the order of the noise.
+
+Tried on ``tune`` (independent generator, 30 spalled + 30 healthy) and not adopted, 2026-11-27
+(the current detector: onset day 27 %, by the day after 33 %, never 50 %, exact 47 %, 0/30 healthy
+alarmed): weighting the change spectrum before the sector energies — by the inverse noise
+estimated from the reference days' scatter (by the day after 47–53 %, but 20/30 healthy
+alarmed), an Eckart filter ``√S/N`` or a Wiener weight with the signal spectrum from the
+reference's tooth-specific orders (17–37 %, 9–12/30 healthy alarmed); AR pre-whitening of the
+change (orders 8–32, fitted on the reference signature, to undo a ringing path; 17–23 %, 0–1/30);
+projecting out the reference days' own deviations as well (30 %); sector sums over 2–4 teeth
+(27–33 %); per-campaign *oracle* lags 0–6 pitches raised few campaigns. Why so little moves: on
+noise-free twins of the same days (same rig and seed, the pit removed), the pit's change holds
+0.2–0.35 × a noisy day's median sector energy on the onset day of several campaigns (seeds 0, 8,
+58) and stays below the noise at 23 µm on seed 0; on seed 58 (a ringing path) it spreads over
+≥ 8 sectors after the tooth, 12–15 % of it in the strongest. The onset-day signal is below these
+records' noise (~30 revolutions); longer records are the lever, not another statistic.
 """
 
 from __future__ import annotations

@@ -98,8 +98,6 @@ energy (an amplitude of 1e-5 of the signal): the stored averages are float32 (re
 so a smaller change is round-off, and identical noise-free records must score 0, not round-off
 divided by a tiny spread."""
 
-SIGNATURE_PROJECTION = False
-
 MIN_MESH_ENERGY_FRACTION = 1e-4
 """An average whose mesh harmonics hold less than this share of its energy (−40 dB) has no mesh
 content to normalise by (a real gear's hold several per cent or more): round-off would set the gain."""

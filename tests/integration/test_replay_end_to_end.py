@@ -263,6 +263,27 @@ def test_real_wind_turbine_stored_raw_kurtosis_trend_rises(windturbine_replay: R
     assert stored[-3:].mean() > 1.3 * stored[:3].mean()
 
 
+def test_real_wind_turbine_alarms_on_the_first_record_whose_raw_kurtosis_rises(
+    windturbine_replay: Replay,
+) -> None:
+    """Issue 10: with the default rules the first alarm comes on record 7 (2013-04-10, raw
+    kurtosis 3.9 against 3.0–3.1 for records 1–5), the first record clearly above the others, and
+    no other alarm opens (the synchronous average's metrics stay flat). Before the short-campaign
+    baseline the rule needed 8 baseline records, so it could only alarm on record 10."""
+    database = windturbine_replay[0]
+    days, stored = windturbine_trend(database, "raw_kurtosis")
+    first_risen = int(np.argmax(stored > stored[:5].max() + 0.5))
+    with session_scope(database.factory) as session:
+        rig = RigRepository(session).get_by_name("windturbine-hss")
+        assert rig is not None
+        alarms = AlarmRepository(session).list(rig_id=rig.id)
+        opened = sorted((a.raised_at, a.indicator, a.severity) for a in alarms)
+        record_times = [p.taken_at for p in TrendRepository(session).metric_trend(rig.id, "raw_kurtosis")]
+    assert first_risen == 6  # record 7: the data's own first clear rise
+    assert [(indicator, severity) for _, indicator, severity in opened] == [("raw_kurtosis", "alarm")]
+    assert opened[0][0] == record_times[first_risen]
+
+
 # -- (c) the same campaign over a CAN bus ------------------------------------------------------
 def _udp_pair() -> tuple[can.BusABC, can.BusABC] | None:
     from gearwatch.floor.errors import InputError
