@@ -271,7 +271,7 @@ def test_real_wind_turbine_alarms_on_the_first_record_whose_raw_kurtosis_rises(
     no other alarm opens (the synchronous average's metrics stay flat). Before the short-campaign
     baseline the rule needed 8 baseline records, so it could only alarm on record 10."""
     database = windturbine_replay[0]
-    days, stored = windturbine_trend(database, "raw_kurtosis")
+    _, stored = windturbine_trend(database, "raw_kurtosis")
     first_risen = int(np.argmax(stored > stored[:5].max() + 0.5))
     with session_scope(database.factory) as session:
         rig = RigRepository(session).get_by_name("windturbine-hss")
