@@ -18,9 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.fft
 from numpy.typing import ArrayLike, NDArray
-from scipy import ndimage
 
 __all__ = [
     "COMB_CAP_NP",
@@ -89,6 +87,10 @@ def line_prominence(signal: ArrayLike, sample_rate_hz: float) -> tuple[FloatArra
     >>> float(f[np.argmax(p)]), bool(p.max() > np.log(1000))
     (1234.0, True)
     """
+    # only without a tachometer: kept off the tach path's imports (scipy costs ~0.3 s to load)
+    import scipy.fft
+    from scipy import ndimage
+
     x = _checked_signal(signal, sample_rate_hz)
     spectrum = np.abs(scipy.fft.rfft(x * np.hanning(x.size)))
     log_amplitude = np.log(np.maximum(spectrum, 1e-300 + 1e-12 * float(spectrum.max())))

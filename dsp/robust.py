@@ -50,7 +50,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -202,19 +201,18 @@ def glitch_limits(
     return round(q_lo - range_factor * width, 12), round(q_hi + range_factor * width, 12)
 
 
-@numba.njit(cache=True)
 def _equal_runs(x: FloatArray, min_run: int) -> IntArray:
-    out = np.empty((x.size // max(min_run, 1) + 1, 2), dtype=np.int64)
-    n = 0
-    start = 0
-    for i in range(1, x.size + 1):
-        if i == x.size or x[i] != x[start]:
-            if i - start >= min_run:
-                out[n, 0] = start
-                out[n, 1] = i
-                n += 1
-            start = i
-    return out[:n]
+    """Spans of the runs of at least ``min_run`` equal consecutive samples (NaN equals nothing)."""
+    if x.size == 0:
+        return _EMPTY_SPANS
+    if min_run <= 1:  # every sample is in a run
+        starts = np.flatnonzero(np.concatenate(([True], x[1:] != x[:-1])))
+        spans = np.stack([starts, np.append(starts[1:], x.size)], axis=1).astype(np.int64)
+    else:
+        # runs of equal neighbouring pairs [a, b) are runs of equal samples [a, b + 1)
+        spans = _true_spans(x[1:] == x[:-1])
+        spans = spans + np.array([0, 1], dtype=np.int64) if spans.size else spans
+    return spans[spans[:, 1] - spans[:, 0] >= min_run]
 
 
 def equal_runs(signal: ArrayLike, min_run: int) -> IntArray:
@@ -280,7 +278,9 @@ def find_sample_defects(
     """
     x = np.ascontiguousarray(signal, dtype=np.float64).ravel()
     lo, hi = limits
-    bad = ~np.isfinite(x) | (x < lo) | (x > hi)
+    bad = ~((x >= lo) & (x <= hi))  # NaN too
+    if not (np.isfinite(lo) and np.isfinite(hi)):  # then inf may lie within the limits
+        bad |= ~np.isfinite(x)
     glitch = _true_spans(bad)
     if extremes is None:
         good = x[~bad]
@@ -364,6 +364,17 @@ def revolutions_overlapping(
     return out
 
 
+def _median_of_rows(r: FloatArray) -> FloatArray:
+    """``np.median(r, axis=0)``, partitioning the transposed copy along its contiguous axis
+    (4× faster on a block of revolutions: a partition along axis 0 strides through memory)."""
+    t = np.ascontiguousarray(r.T)
+    half = t.shape[1] // 2
+    if t.shape[1] % 2:
+        return np.partition(t, half, axis=1)[:, half]
+    middle = np.partition(t, (half - 1, half), axis=1)
+    return (middle[:, half - 1] + middle[:, half]) / 2
+
+
 def revolution_outliers(
     revolutions: ArrayLike, outlier_factor: float = REVOLUTION_OUTLIER_FACTOR
 ) -> BoolArray:
@@ -419,10 +430,11 @@ def revolution_outliers(
     typical_level = float(np.median(level))
     gains = level / typical_level if typical_level > 0 else np.ones(r.shape[0])
     normalised = ac / np.where(gains > 0, gains, 1.0)[:, np.newaxis]
-    typical = np.median(normalised, axis=0)
-    residual = normalised - typical
-    peak = np.max(np.abs(residual), axis=1)
-    energy = np.mean(residual * residual, axis=1)
+    typical = _median_of_rows(normalised)
+    residual = normalised
+    residual -= typical  # in place: normalised is not needed any more
+    peak = np.maximum(np.max(residual, axis=1), -np.min(residual, axis=1))  # max |r|, no |r| copy
+    energy = np.einsum("ij,ij->i", residual, residual) / residual.shape[1]
     # Residuals far below the synchronous signal cannot move the average: noise-free records
     # (only resampling rounding in the residual) must not lose revolutions to its scatter.
     synchronous = typical - np.mean(typical)  # already zero-mean up to the median's rounding

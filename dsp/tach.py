@@ -23,7 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -210,75 +209,76 @@ def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
     return low_level, high_level, noise_rms
 
 
-@numba.njit(cache=True)
 def _schmitt_flips(
     x: FloatArray, lower: float, upper: float
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Low-to-high flips of a Schmitt trigger: (last sample below ``lower``, first above ``upper``).
 
-    The state starts unknown, so an edge in progress at the first sample is not a flip.
+    The state starts unknown, so an edge in progress at the first sample is not a flip. The
+    trigger is high after a sample above ``upper``, low after one below ``lower`` (below wins when
+    both), unchanged in between; so a flip is the first sample of a run above ``upper`` whose
+    latest sample below ``lower`` comes after the run before it (vectorised: no per-sample loop).
     """
-    start = np.empty(x.size // 2 + 1, dtype=np.int64)
-    stop = np.empty(x.size // 2 + 1, dtype=np.int64)
-    n_flips = 0
-    state = 0
-    last_low = -1
-    for i in range(x.size):
-        v = x[i]
-        if v < lower:
-            state = -1
-            last_low = i
-        elif v > upper:
-            if state == -1:
-                start[n_flips] = last_low
-                stop[n_flips] = i
-                n_flips += 1
-            state = 1
-    return start[:n_flips], stop[:n_flips]
+    low = x < lower
+    high = x > upper
+    high &= ~low
+    ends_low = np.flatnonzero(low[:-1] & ~low[1:])  # last sample of each run below
+    if low[-1]:
+        ends_low = np.append(ends_low, x.size - 1)
+    starts_high = np.flatnonzero(~high[:-1] & high[1:]) + 1  # first sample of each run above
+    if high[0]:
+        starts_high = np.concatenate(([0], starts_high))
+    # the latest sample above before a start is the end of the run above before it
+    ends_high = np.flatnonzero(high[:-1] & ~high[1:])
+    k_low = np.searchsorted(ends_low, starts_high) - 1  # latest run below ending before the start
+    k_high = np.searchsorted(ends_high, starts_high) - 1
+    last_low = np.append(ends_low, -1)[k_low]  # index −1: no such run (−1)
+    last_high = np.append(ends_high, -1)[k_high]
+    flips = (last_low >= 0) & (last_low > last_high)
+    return last_low[flips].astype(np.int64), starts_high[flips].astype(np.int64)
 
 
-@numba.njit(cache=True)
 def _edge_crossings(
     x: FloatArray, start: NDArray[np.int64], stop: NDArray[np.int64], threshold: float
 ) -> FloatArray:
     """Fractional sample index where each edge crosses ``threshold``.
 
     ``start[i]`` is the last sample below the lower hysteresis level, ``stop[i]`` the first one
-    above the upper level; samples strictly between them lie inside the hysteresis band.
+    above the upper level; samples strictly between them lie inside the hysteresis band. All
+    edges at once: the samples of every edge are gathered into one array and summed per edge.
     """
     out = np.empty(start.size)
-    for e in range(start.size):
-        a = start[e]
-        b = stop[e]
-        interior = b - a - 1
-        if interior >= MIN_FIT_SAMPLES:
-            # Least-squares line through the in-band samples, then solve line(t) = threshold.
-            m = float(interior)
-            st = 0.0
-            sx = 0.0
-            stt = 0.0
-            stx = 0.0
-            for j in range(a + 1, b):
-                tj = float(j - a)
-                st += tj
-                sx += x[j]
-                stt += tj * tj
-                stx += tj * x[j]
-            denom = m * stt - st * st
-            slope = (m * stx - st * sx) / denom
-            if slope > 0.0:
-                intercept = (sx - slope * st) / m
-                # The crossing lies between the last low and the first high sample.
-                out[e] = a + min(max((threshold - intercept) / slope, 0.0), float(b - a))
-                continue
-        # Fast edge (or a flat fit): last upward crossing of the threshold inside [a, b].
-        j = b - 1
-        while j > a and x[j] > threshold:
-            j -= 1
-        x0 = x[j]
-        x1 = x[j + 1]
-        frac = (threshold - x0) / (x1 - x0) if x1 != x0 else 0.5
-        out[e] = j + min(max(frac, 0.0), 1.0)
+    if start.size == 0:
+        return out
+    # samples a … b−1 of every edge, edge after edge
+    lengths = stop - start
+    offsets = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    local = np.arange(int(lengths.sum())) - np.repeat(offsets, lengths)  # j − a
+    values = x[np.repeat(start, lengths) + local]
+    # Least-squares line through the in-band samples (j = a+1 … b−1, t = j − a), then solve
+    # line(t) = threshold: the sums over each edge's interior (its first sample, t = 0, left out).
+    interior = lengths - 1
+    inside = local > 0
+    sx = np.add.reduceat(np.where(inside, values, 0.0), offsets)
+    stx = np.add.reduceat(np.where(inside, local * values, 0.0), offsets)
+    m = interior.astype(np.float64)
+    st = m * (m + 1) / 2
+    stt = m * (m + 1) * (2 * m + 1) / 6
+    denom = m * stt - st * st
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = (m * stx - st * sx) / denom
+        intercept = (sx - slope * st) / m
+        fitted = start + np.minimum(np.maximum((threshold - intercept) / slope, 0.0), lengths)
+    fit = (interior >= MIN_FIT_SAMPLES) & (slope > 0.0)
+    # Fast edge (or a flat fit): last upward crossing of the threshold inside [a, b]: the last
+    # sample j in a … b−1 at or below it (a when none), interpolated to j + 1.
+    below = np.where((values <= threshold) | ~inside, local, 0)
+    j = start + np.maximum.reduceat(below, offsets)
+    x0, x1 = x[j], x[j + 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where(x1 != x0, (threshold - x0) / (x1 - x0), 0.5)
+    interpolated = j + np.minimum(np.maximum(frac, 0.0), 1.0)
+    out[:] = np.where(fit, fitted, interpolated)
     return out
 
 

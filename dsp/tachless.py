@@ -49,7 +49,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 
 from dsp.meshspectrum import (
@@ -325,6 +324,8 @@ def _shaft_from_mesh_comb(
 
 def _power_centroid_hz(x: FloatArray, sample_rate_hz: float, centre_hz: float, half_width_hz: float) -> float:
     """Power-weighted mean frequency of ``x`` within ``centre ± half_width``."""
+    import scipy.fft  # only without a tachometer: not on the tach path's imports
+
     power = np.abs(scipy.fft.rfft(x * np.hanning(x.size))) ** 2
     freq = np.fft.rfftfreq(x.size, d=1.0 / sample_rate_hz)
     inside = np.abs(freq - centre_hz) <= half_width_hz
@@ -360,6 +361,8 @@ def mesh_ridge_cycles(
     >>> bool(np.max(np.abs(np.diff(c - cycles))) < 1e-4)       # same frequency at every sample
     True
     """
+    import scipy.fft  # only without a tachometer: not on the tach path's imports
+
     x = _checked_signal(signal, sample_rate_hz)
     duration_s = x.size / sample_rate_hz
     if window_s is None:
@@ -397,6 +400,8 @@ def _analytic_band(
     """Analytic signal of ``x`` band-passed to ``centre ± half_width`` (one-sided FFT mask,
     raised-cosine edges over the outer 30 % of each side). ``two_sided``: keep negative
     frequencies inside the band too (a complex, heterodyned ``x`` around 0 Hz)."""
+    import scipy.fft  # only without a tachometer: not on the tach path's imports
+
     n = x.size
     n_fft = scipy.fft.next_fast_len(n)
     spectrum = scipy.fft.fft(x, n=n_fft)

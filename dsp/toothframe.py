@@ -44,7 +44,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
@@ -139,13 +138,13 @@ def circular_shift(x: ArrayLike, delay_samples: float) -> FloatArray:
     n = values.size
     if float(delay_samples).is_integer():
         return np.roll(values, int(delay_samples))
-    spectrum = scipy.fft.rfft(values)
+    spectrum = np.fft.rfft(values)
     orders = np.arange(spectrum.size)
     spectrum = spectrum * np.exp(-2j * np.pi * orders * float(delay_samples) / n)
     if n % 2 == 0:
         # the Nyquist bin of a real signal must stay real: keep its cosine part
         spectrum[-1] = spectrum[-1].real
-    return np.asarray(scipy.fft.irfft(spectrum, n=n), dtype=np.float64)
+    return np.asarray(np.fft.irfft(spectrum, n=n), dtype=np.float64)
 
 
 def resample_periodic(x: ArrayLike, samples: int) -> FloatArray:
@@ -153,13 +152,13 @@ def resample_periodic(x: ArrayLike, samples: int) -> FloatArray:
     values = np.asarray(x, dtype=np.float64)
     if values.size == samples:
         return values.copy()
-    spectrum = scipy.fft.rfft(values)
+    spectrum = np.fft.rfft(values)
     out = np.zeros(samples // 2 + 1, dtype=np.complex128)
     keep = min(spectrum.size, out.size)
     out[:keep] = spectrum[:keep]
     if samples % 2 == 0 and keep == out.size:
         out[-1] = out[-1].real
-    return np.asarray(scipy.fft.irfft(out, n=samples) * samples / values.size, dtype=np.float64)
+    return np.asarray(np.fft.irfft(out, n=samples) * samples / values.size, dtype=np.float64)
 
 
 def mesh_phase_position(average: ArrayLike, teeth: int) -> float:
@@ -176,7 +175,7 @@ def mesh_phase_position(average: ArrayLike, teeth: int) -> float:
     3.25
     """
     x = _checked(average, teeth)
-    coefficient = scipy.fft.rfft(x)[teeth]
+    coefficient = np.fft.rfft(x)[teeth]
     per_tooth = x.size / teeth
     return float((-np.angle(coefficient) / (2.0 * np.pi)) % 1.0 * per_tooth)
 
@@ -200,10 +199,10 @@ def tooth_fingerprint(average: ArrayLike, teeth: int) -> FloatArray:
     """
     x = _checked(average, teeth)
     canonical = circular_shift(x, -mesh_phase_position(x, teeth))
-    spectrum = scipy.fft.rfft(canonical)
+    spectrum = np.fft.rfft(canonical)
     spectrum[0] = 0.0
     spectrum[teeth::teeth] = 0.0
-    pattern = scipy.fft.irfft(spectrum, n=x.size)
+    pattern = np.fft.irfft(spectrum, n=x.size)
     sectors = pattern.reshape(teeth, -1)
     energy = np.mean(sectors**2, axis=1)
     median = float(np.median(energy))
@@ -253,7 +252,7 @@ def align_fingerprint(
         return FrameAlignment(None, 0.0, 0.0, 0.0,
                               "no tooth pattern to align: the record or the reference average is perfectly regular")
     # c[s] = Σ_n fp[n + s]·ref[n]: fp delayed by d peaks at s = d
-    full = scipy.fft.irfft(scipy.fft.rfft(fp) * np.conj(scipy.fft.rfft(ref)), n=fp.size) / norm
+    full = np.fft.irfft(np.fft.rfft(fp) * np.conj(np.fft.rfft(ref)), n=fp.size) / norm
     per_tooth = fp.size // teeth
     # window k: shifts within a quarter tooth of k teeth (not half: a neighbour's window would
     # then reach the flank of the true peak and eat the margin)
@@ -328,7 +327,7 @@ def shift_separation_z(
     f = np.asarray(fingerprint, dtype=np.float64)
     r = resample_periodic(np.asarray(reference, dtype=np.float64), f.size)
     n = f.size
-    big_f, big_r = scipy.fft.rfft(f), scipy.fft.rfft(r)
+    big_f, big_r = np.fft.rfft(f), np.fft.rfft(r)
     k = np.arange(big_f.size)
     weight = np.full(big_f.size, 2.0)
     weight[0] = 1.0

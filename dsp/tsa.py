@@ -42,7 +42,6 @@ True
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
@@ -153,11 +152,11 @@ def _keep_orders(average: ArrayLike, orders: IntArray, keep: bool, axis: int) ->
     """Zero either the listed DFT bins (``keep=False``) or all the others (``keep=True``)."""
     x = np.moveaxis(np.asarray(average, dtype=np.float64), axis, -1)
     n = x.shape[-1]
-    spectrum = scipy.fft.rfft(x, axis=-1)
+    spectrum = np.fft.rfft(x, axis=-1)
     mask = np.zeros(n // 2 + 1, dtype=bool)
     mask[orders] = True
     spectrum[..., ~mask if keep else mask] = 0.0
-    out = scipy.fft.irfft(spectrum, n=n, axis=-1)
+    out = np.fft.irfft(spectrum, n=n, axis=-1)
     return np.moveaxis(np.asarray(out, dtype=np.float64), -1, axis)
 
 

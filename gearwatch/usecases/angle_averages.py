@@ -71,6 +71,23 @@ def _revolution_bounds_s(
     return np.stack([times[:, 0], times[:, -1] + step], axis=1)
 
 
+def _add_to_groups(
+    group_sums: np.ndarray, group_counts: np.ndarray, revs: np.ndarray, first: int
+) -> None:
+    """Add revolution ``r`` of ``revs`` (revolution ``first + r`` of the record) to group
+    ``(first + r) mod K``, in place: the rows padded to whole rounds of K and summed round by
+    round (``np.add.at`` does the same row by row, ~20× slower)."""
+    groups = group_sums.shape[0]
+    if revs.shape[0] == 0:
+        return
+    lead = first % groups
+    rounds = -(-(lead + revs.shape[0]) // groups)
+    padded = np.zeros((rounds * groups, revs.shape[1]))
+    padded[lead : lead + revs.shape[0]] = revs
+    group_sums += padded.reshape(rounds, groups, revs.shape[1]).sum(axis=0)
+    group_counts += np.bincount((first + np.arange(revs.shape[0])) % groups, minlength=groups)
+
+
 def angle_averages(
     samples: np.ndarray,
     sample_rate_hz: float,
@@ -134,7 +151,9 @@ def angle_averages(
             block_pulses = pulse_times_s[first_pulse : last_pulse + 1] - start / sample_rate_hz
             skip_pinion_revs = round((first_rev - context_rev) * pinion_per_tach_rev)
         block_spans = spans[(spans[:, 1] > start) & (spans[:, 0] < stop)] - start
-        block = repair_spans(np.asarray(samples[start:stop], dtype=np.float64), block_spans)
+        block = np.asarray(samples[start:stop], dtype=np.float64)
+        if block_spans.size:  # (repair_spans copies; most blocks have nothing to bridge)
+            block = repair_spans(block, block_spans)
         revs = angle_resample(
             block, sample_rate_hz, block_pulses, pulses_per_rev, pinion_spr,
             shaft_ratio=pinion_per_tach_rev,
@@ -155,9 +174,7 @@ def angle_averages(
         good = revs[accepted]
         pinion_sum += good.sum(axis=0)
         pinion_sumsq += np.einsum("ij,ij->j", good, good)
-        groups = (pinion_count + np.arange(good.shape[0])) % JACKKNIFE_GROUPS
-        np.add.at(group_sums, groups, good)
-        np.add.at(group_counts, groups, 1)
+        _add_to_groups(group_sums, group_counts, good, pinion_count)
         pinion_count += good.shape[0]
         gear_revs = gear_revolutions_from_pinion_grid(revs, gear_spr)
         sample_ok = np.repeat(accepted, pinion_spr)[: gear_revs.size].reshape(gear_revs.shape)

@@ -46,8 +46,11 @@ def refuse_impossible_magnitudes(samples: np.ndarray, what: str, block_samples: 
         block = np.asarray(samples[start : start + block_samples])
         if block.size == 0 or not np.issubdtype(block.dtype, np.number):
             continue
-        magnitudes = np.abs(block[np.isfinite(block)]) if block.dtype.kind == "f" else np.abs(block)
-        peak = float(magnitudes.max()) if magnitudes.size else 0.0
+        if block.dtype.kind != "f" or np.isfinite(block).all():  # no copy in the usual case
+            peak = max(abs(float(block.max())), abs(float(block.min())))
+        else:
+            magnitudes = np.abs(block[np.isfinite(block)])
+            peak = float(magnitudes.max()) if magnitudes.size else 0.0
         if peak > MAX_ABS_SAMPLE:
             raise RecordRejected(
                 f"{what} holds a sample of magnitude {peak:.3g}, beyond any sensor's range "
@@ -92,7 +95,9 @@ def checked_signal(
     top, bottom = -np.inf, np.inf
     for start in starts:
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
-        good = block[np.isfinite(block) & (block >= limits[0]) & (block <= limits[1])]
+        # the limits are finite, so the comparisons leave NaN and inf out too
+        inside = (block >= limits[0]) & (block <= limits[1])
+        good = block if inside.all() else block[inside]
         if good.size:
             top, bottom = max(top, float(good.max())), min(bottom, float(good.min()))
     if not np.isfinite(top):
@@ -105,7 +110,8 @@ def checked_signal(
         defects = find_sample_defects(
             block, limits=limits, extremes=(bottom, top), dropout_min_run=dropout_run
         )
-        repaired = repair_spans(block, defects.spans())
+        spans = defects.spans()
+        repaired = repair_spans(block, spans) if spans.size else block
         if shift is None:  # moments about a value near the mean, so that the sums do not cancel
             shift = float(np.mean(repaired[:1024]))
         sums += extremes_and_moment_sums(repaired, shift)[2]

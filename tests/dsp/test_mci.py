@@ -233,3 +233,17 @@ def test_all_zero_average_gives_finite_flat_curves() -> None:
     for form in ("robust", "literal"):
         result = moving_cepstrum_integral(np.zeros(128), 16, form=form)
         assert np.all(np.isfinite(result.filtered)) and np.ptp(result.filtered) == 0
+
+
+@pytest.mark.parametrize("width", [1, 2, 5, 64, 127, 300])
+def test_circular_median_equals_scipy_ndimage_wrap(width: int) -> None:
+    """The numpy circular median (no scipy.ndimage import on the analyze path) gives exactly
+    scipy.ndimage.median_filter(mode="wrap") values, ties and windows wider than a row included."""
+    from scipy import ndimage
+
+    from dsp.mci import _circular_median
+
+    rng = np.random.default_rng(width)
+    rows = np.round(rng.standard_normal((3, 257)), 1)  # rounded: many ties
+    expected = np.stack([ndimage.median_filter(row, size=width, mode="wrap") for row in rows])
+    np.testing.assert_array_equal(_circular_median(rows, width), expected)
