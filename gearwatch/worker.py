@@ -17,7 +17,9 @@ from typing import Any
 
 import dramatiq
 
+from gearwatch.floor.errors import DatabaseUnavailable
 from gearwatch.usecases import job_queue
+from storage.db import database_unavailable
 
 logger = logging.getLogger(__name__)
 
@@ -29,8 +31,20 @@ broker = job_queue.broker()
     broker=broker,
 )
 def process_record(campaign: str, path: str, **options: Any) -> None:
-    """Dramatiq actor: :func:`~gearwatch.usecases.job_queue.run_job` with the message's arguments."""
-    outcome = job_queue.run_job(campaign, path, **options)
+    """Dramatiq actor: :func:`~gearwatch.usecases.job_queue.run_job` with the message's arguments.
+
+    A database that cannot be reached or went away mid-job is one warning line and a retry
+    (Dramatiq's backoff and ``max_retries``), not a traceback; the job is idempotent, so a retry
+    of a job whose commit did reach the database finds its record and changes nothing."""
+    try:
+        outcome = job_queue.run_job(campaign, path, **options)
+    except Exception as error:
+        unavailable = database_unavailable(error)
+        if not isinstance(unavailable, DatabaseUnavailable):
+            raise
+        reason = " ".join(str(getattr(error, "orig", None) or error).split())[:300]
+        logger.warning("%s: database unavailable (%s); the job is retried", path, reason)
+        raise dramatiq.Retry(f"database unavailable ({reason})") from None
     logger.info("%s: %s", path, outcome)
 
 

@@ -16,9 +16,11 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 import sqlalchemy as sa
+from sqlalchemy.orm import Session
 
 from tests.gearwatch.jobfixtures import make_campaign
 from tests.storage import dbfixtures
@@ -63,6 +65,8 @@ class Proxy:
     def __init__(self, target: tuple[str, int]) -> None:
         self.target = target
         self.port = _closed_port()
+        self.dropped = 0
+        """How many connections the last :meth:`cut` dropped."""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -108,6 +112,7 @@ class Proxy:
                             selector.unregister(one)
                             sockets.remove(one)
                             one.close()
+        self.dropped = (len(sockets) - 1) // 2  # a client and its upstream per connection
         for one in sockets:
             one.close()
         selector.close()
@@ -302,3 +307,180 @@ def test_rabbitmq_going_away_during_worker_ingestion_loses_and_duplicates_nothin
             "ON v.record_id = r.id GROUP BY r.file_name")).all()
     engine.dispose()
     assert sorted(rows) == [(f"day{d:02d}.wav", 1) for d in range(n_records)]
+
+
+def _stored_outcome(session: Session) -> dict[str, Any]:
+    """Every record (name, status, reason, its result versions and per-tooth indicator rows)
+    and the row count of every table: what a run stored, comparable across databases."""
+    from storage.models import Base, Record, ResultVersion, ToothIndicator
+
+    versions = (sa.select(ResultVersion.record_id, sa.func.count().label("n"))
+                .group_by(ResultVersion.record_id).subquery())
+    indicators = (sa.select(ResultVersion.record_id, sa.func.count().label("n"))
+                  .join(ToothIndicator, ToothIndicator.result_id == ResultVersion.id)
+                  .group_by(ResultVersion.record_id).subquery())
+    records = session.execute(
+        sa.select(Record.file_name, Record.status, Record.reason,
+                  sa.func.coalesce(versions.c.n, 0), sa.func.coalesce(indicators.c.n, 0))
+        .join(versions, versions.c.record_id == Record.id, isouter=True)
+        .join(indicators, indicators.c.record_id == Record.id, isouter=True)
+    ).all()
+    rows = {table.name: int(session.scalar(sa.select(sa.func.count()).select_from(table)) or 0)
+            for table in Base.metadata.sorted_tables}
+    return {"records": sorted(tuple(r) for r in records), "rows": rows}
+
+
+@pytest.mark.broker
+@pytest.mark.slow
+def test_postgresql_going_away_during_worker_ingestion_loses_and_duplicates_nothing(
+    tmp_path: Path, postgres_schema_url: str
+) -> None:
+    """Two Dramatiq workers on RabbitMQ ingest a campaign with PostgreSQL behind a proxy this
+    test owns. While a worker is inside a job's transaction the proxy drops every connection
+    and refuses new ones for a while, then comes back: each failed attempt is one warning line
+    and a retry (nothing dropped or dead-lettered), every record is stored exactly once, and
+    records, indicator rows, tracks, alarms and their transitions are a sequential replay's."""
+    import re
+    import secrets
+    import signal as signals
+
+    import dramatiq
+    import pika
+    from dramatiq.brokers.rabbitmq import RabbitmqBroker
+
+    from gearwatch.usecases.ingest_file import process_file
+    from storage.db import open_database, session_scope
+    from storage.raw_store import RawStore
+    from tests.gearwatch.test_jobs import _require_broker, _start_worker, _stop, broker_url
+    from tests.gearwatch.test_workers_order import AMPLITUDES, _prepare
+    from tests.storage.evaluation_snapshot import evaluation_snapshot
+
+    _require_broker()
+    # The order test's campaign (the rms alarm opens on days 8-10 and clears), with day 5's
+    # file truncated: one record is rejected, with a reason.
+    campaign = make_campaign(tmp_path / "camp", AMPLITUDES, truncated=(5,))
+    entries = list(campaign.records)
+    paths = [str(campaign.record_path(entry)) for entry in entries]
+    engine, factory = open_database(postgres_schema_url)  # migrated directly, not by a worker
+    rig_id = _prepare(factory, campaign)
+    direct = sa.engine.make_url(postgres_schema_url)
+    proxy = Proxy((direct.host or "127.0.0.1", direct.port or 5432))
+    proxy.start()
+    queue = f"gw_test_{secrets.token_hex(6)}"
+    env = {**os.environ, "GEARWATCH_QUEUE": queue, "GEARWATCH_BROKER_URL": broker_url(),
+           "GEARWATCH_RAW_STORE": str(tmp_path / "raw"), "dramatiq_restart_delay": "0"}
+    broker = RabbitmqBroker(url=broker_url())
+    broker.declare_queue(queue)
+    names = [f"{queue}_w{i}" for i in range(2)]  # their connections, in pg_stat_activity
+    logs = [tmp_path / f"worker{i}.log" for i in range(2)]
+    workers = [
+        _start_worker({**env, "GEARWATCH_DATABASE_URL": direct.set(
+            host="127.0.0.1", port=proxy.port).update_query_dict(
+            {"application_name": name}).render_as_string(hide_password=False)}, log)
+        for name, log in zip(names, logs, strict=True)]
+
+    def log_text() -> str:
+        return "\n".join(log.read_text() for log in logs)
+
+    def done() -> list[str]:
+        """The paths of the jobs the workers finished (the actor logs each one)."""
+        return re.findall(r"\[gearwatch\.worker\] \[INFO\] (\S+): \{", log_text())
+
+    def inside_a_job() -> list[str]:
+        """The workers holding an open transaction (a job's: it spans the whole job)."""
+        with engine.connect() as connection:
+            return sorted(connection.execute(sa.text(
+                "SELECT application_name FROM pg_stat_activity WHERE application_name IN "
+                "(:a, :b) AND xact_start IS NOT NULL"), {"a": names[0], "b": names[1]}).scalars())
+
+    def signal_workers(sig: int) -> None:
+        for worker in workers:
+            os.killpg(worker.pid, sig)
+
+    try:
+        # The reference, while the workers boot: the same records one by one in taken_at
+        # order, in this process (SQLite).
+        _, reference_factory = open_database(f"sqlite:///{tmp_path / 'reference.db'}")
+        reference_rig = _prepare(reference_factory, campaign)
+        for entry in entries:
+            with session_scope(reference_factory) as session:
+                process_file(session, campaign.record_path(entry), campaign,
+                             raw_store=RawStore(tmp_path / "raw-reference"),
+                             taken_at=entry.taken_at, label=entry.label)
+        with session_scope(reference_factory) as session:
+            expected_state = evaluation_snapshot(session, reference_rig, digits=9)
+            expected = _stored_outcome(session)
+        assert ("rms", "cleared") in [(a[0], a[2]) for a in expected_state["alarms"]]
+        assert [r[1] for r in expected["records"]].count("rejected") == 1
+
+        for entry, path in zip(entries, paths, strict=True):
+            broker.enqueue(dramatiq.Message(
+                queue_name=queue, actor_name="process_record", args=(campaign.id, path),
+                kwargs={"taken_at": entry.taken_at, "label": entry.label},
+                # The actor's 5 retries, sooner than after the 15 s default backoff so that the
+                # test stays short; they still span >= 7.75 s, well over the outage.
+                options={"min_backoff": 500}))
+        deadline = time.monotonic() + 300  # a bound on a hang on a loaded box, not speed
+        # The outage starts while a worker is inside a job (checked with the workers stopped,
+        # so that the job cannot finish between the check and the cut), with records left.
+        while True:
+            assert time.monotonic() < deadline, log_text()[-3000:]
+            assert all(w.poll() is None for w in workers), log_text()[-3000:]
+            if len(done()) >= 3 and inside_a_job():
+                signal_workers(signals.SIGSTOP)
+                in_job = inside_a_job()
+                if in_job:
+                    break
+                signal_workers(signals.SIGCONT)
+            time.sleep(0.02)
+        done_at_cut = len(done())
+        proxy.cut()
+        dropped = proxy.dropped
+        outage_start = time.monotonic()
+        signal_workers(signals.SIGCONT)
+        # The database stays away (connections refused) for 2 s, and until the workers have
+        # run into it: the job in flight fails, and a queued job fails to connect.
+        while (time.monotonic() - outage_start < 2.0
+               or log_text().count("Retrying message") < 2
+               or "Connection refused" not in log_text()):
+            assert time.monotonic() < deadline, log_text()[-3000:]
+            time.sleep(0.05)
+        proxy.start()
+        while len(done()) < len(paths):
+            assert time.monotonic() < deadline, log_text()[-3000:]
+            assert all(w.poll() is None for w in workers), log_text()[-3000:]
+            assert "Retries exceeded" not in log_text(), log_text()[-3000:]
+            time.sleep(0.1)
+    finally:
+        for worker in workers:
+            _stop(worker, signals.SIGTERM)
+        proxy.cut()
+        connection = pika.BlockingConnection(pika.URLParameters(broker_url()))
+        channel = connection.channel()
+        left = {name: channel.queue_declare(name, passive=True).method.message_count
+                for name in (queue, f"{queue}.DQ", f"{queue}.XQ")}
+        for name in left:
+            channel.queue_delete(name)
+        connection.close()
+        broker.close()
+    text = log_text()
+    # Not vacuous: a worker's job transaction and its connection were cut, with work left.
+    assert in_job and dropped >= len(in_job) and done_at_cut < len(paths)
+    # Retried, not dropped: every failed attempt (on a connection cut mid-job, or refused) is
+    # one warning line and a retry; nothing is queued, delayed or dead-lettered; every message
+    # finished exactly once.
+    failed = [line for line in text.splitlines() if "database unavailable" in line]
+    assert text.count("Retrying message") == len(failed), text[-3000:]
+    assert all(re.search(r"\[WARNING\] \S+\.wav: database unavailable \(.+\); the job is "
+                         r"retried$", line) for line in failed), failed
+    assert any("Connection refused" in line for line in failed), failed
+    assert any("Connection refused" not in line for line in failed), failed
+    assert not re.search(r"Traceback|\[ERROR\]|\[CRITICAL\]", text), text[-3000:]
+    assert left == {queue: 0, f"{queue}.DQ": 0, f"{queue}.XQ": 0}
+    assert sorted(done()) == sorted(paths)
+    # Nothing lost, nothing twice: what is stored, row for row, and the per-tooth tracks,
+    # alarms and transitions are the sequential replay's.
+    with session_scope(factory) as session:
+        assert _stored_outcome(session) == expected
+        assert evaluation_snapshot(session, rig_id, digits=9) == expected_state
+    engine.dispose()
