@@ -244,7 +244,7 @@ def test_watch_command_ingests_dropped_files_until_interrupted(tmp_path) -> None
     folder = tmp_path / "drop"
     make_campaign(folder, [1.0])
     repo = Path(__file__).resolve().parents[2]
-    env = {**os.environ, "PYTHONPATH": str(repo)}
+    env = {**os.environ, "PYTHONPATH": str(repo), "PYTHONFAULTHANDLER": "1"}
     process = subprocess.Popen(
         [sys.executable, "-m", "gearwatch", "watch", str(folder), "--interval", "0.2",
          "--db", f"sqlite:///{tmp_path / 'w.db'}", "--raw-store", str(tmp_path / "raw")],
@@ -274,7 +274,12 @@ def test_watch_command_ingests_dropped_files_until_interrupted(tmp_path) -> None
         engine.dispose()
     finally:
         process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=300)
+        try:
+            out, err = process.communicate(timeout=120)
+        except subprocess.TimeoutExpired:  # seen once on a loaded machine: say where it hangs
+            process.send_signal(signal.SIGABRT)  # PYTHONFAULTHANDLER: every thread's stack
+            out, err = process.communicate(timeout=60)
+            pytest.fail(f"watch did not stop within 120 s of SIGINT; its stacks:\n{err[-6000:]}")
     assert process.returncode == 0, err
     assert "day00.wav: accepted" in out and "dropped.wav: accepted" in out
     assert "ingested: 2 accepted" in out
