@@ -348,11 +348,9 @@ def test_postgresql_going_away_during_worker_ingestion_loses_and_duplicates_noth
     import pika
     from dramatiq.brokers.rabbitmq import RabbitmqBroker
 
-    from gearwatch.usecases.ingest_file import process_file
     from storage.db import open_database, session_scope
-    from storage.raw_store import RawStore
     from tests.gearwatch.test_jobs import _require_broker, _start_worker, _stop, broker_url
-    from tests.gearwatch.test_workers_order import AMPLITUDES, _prepare
+    from tests.gearwatch.test_workers_order import AMPLITUDES, _prepare, sequential_reference
     from tests.storage.evaluation_snapshot import evaluation_snapshot
 
     _require_broker()
@@ -398,15 +396,8 @@ def test_postgresql_going_away_during_worker_ingestion_loses_and_duplicates_noth
             os.killpg(worker.pid, sig)
 
     try:
-        # The reference, while the workers boot: the same records one by one in taken_at
-        # order, in this process (SQLite).
-        _, reference_factory = open_database(f"sqlite:///{tmp_path / 'reference.db'}")
-        reference_rig = _prepare(reference_factory, campaign)
-        for entry in entries:
-            with session_scope(reference_factory) as session:
-                process_file(session, campaign.record_path(entry), campaign,
-                             raw_store=RawStore(tmp_path / "raw-reference"),
-                             taken_at=entry.taken_at, label=entry.label)
+        # The reference, while the workers boot.
+        reference_factory, reference_rig = sequential_reference(tmp_path, campaign, entries)
         with session_scope(reference_factory) as session:
             expected_state = evaluation_snapshot(session, reference_rig, digits=9)
             expected = _stored_outcome(session)

@@ -46,6 +46,21 @@ def _prepare(session_factory, campaign) -> int:  # type: ignore[no-untyped-def]
         return stored.rig_id
 
 
+def sequential_reference(tmp_path: Path, campaign, entries):  # type: ignore[no-untyped-def]
+    """The same records one by one in ``taken_at`` order, in this process, into a SQLite database
+    of their own: (its session factory, the rig id) — what parallel workers must reproduce."""
+    from storage.db import open_database, session_scope
+
+    _, reference_factory = open_database(f"sqlite:///{tmp_path / 'reference.db'}")
+    reference_rig = _prepare(reference_factory, campaign)
+    for entry in entries:
+        with session_scope(reference_factory) as session:
+            process_file(session, campaign.record_path(entry), campaign,
+                         raw_store=RawStore(tmp_path / "raw-reference"),
+                         taken_at=entry.taken_at, label=entry.label)
+    return reference_factory, reference_rig
+
+
 @pytest.mark.broker
 @pytest.mark.slow
 @pytest.mark.parametrize("db_url", ["postgresql"], indirect=True)
@@ -56,21 +71,14 @@ def test_two_workers_shuffled_give_the_alarms_of_a_sequential_replay(
     import pika
     from dramatiq.brokers.rabbitmq import RabbitmqBroker
 
-    from storage.db import open_database, session_factory, session_scope
+    from storage.db import session_factory, session_scope
     from storage.models import ResultVersion
 
     _require_broker()
     campaign = make_campaign(tmp_path / "camp", AMPLITUDES)
     entries = list(campaign.records)
 
-    # The reference: the same records, one by one in taken_at order, in this process (SQLite).
-    _, reference_factory = open_database(f"sqlite:///{tmp_path / 'reference.db'}")
-    reference_rig = _prepare(reference_factory, campaign)
-    for entry in entries:
-        with session_scope(reference_factory) as session:
-            process_file(session, campaign.record_path(entry), campaign,
-                         raw_store=RawStore(tmp_path / "raw-reference"),
-                         taken_at=entry.taken_at, label=entry.label)
+    reference_factory, reference_rig = sequential_reference(tmp_path, campaign, entries)
     with session_scope(reference_factory) as session:
         expected = evaluation_snapshot(session, reference_rig, digits=9)
     # The fixture must raise and clear at least the RMS alarm (the jump on days 8-10); the default
