@@ -308,6 +308,37 @@ def campaign_change_scores(
     >>> scores[:2], [int(np.argmax(s)) + 1 for s in scores[3:]], bool(min(scores[3][2], scores[4][2]) > 6)
     ([None, None], [3, 3], True)
     """
+    return campaign_change_state(
+        averages, tooth1_pitch_angles_deg, pinion_teeth, reference_records=reference_records,
+        min_reference_records=min_reference_records, lag_pitch=lag_pitch,
+    )[0]
+
+
+def campaign_change_state(
+    averages: Sequence[ArrayLike | None],
+    tooth1_pitch_angles_deg: Sequence[float],
+    pinion_teeth: int,
+    *,
+    reference_records: int = DEFAULT_REFERENCE_RECORDS,
+    min_reference_records: int = DEFAULT_MIN_REFERENCE_RECORDS,
+    lag_pitch: float = DEFAULT_LAG_PITCH,
+) -> tuple[list[NDArray[np.float64] | None], list[int]]:
+    """:func:`campaign_change_scores` and the indices of the records admitted to the reference.
+
+    A record's scores depend only on the records before it; once ``reference_records`` records
+    of its length are admitted, no later record of that length is. So a record appended after a
+    prefix that already holds a complete reference is scored exactly by scoring the prefix and
+    it alone (what :mod:`gearwatch.usecases.tooth_change` does for the record that arrives last).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> days = [np.cos(2 * np.pi * 8 * np.arange(256) / 256) + 0.01 * rng.standard_normal(256)
+    ...         for _ in range(5)]
+    >>> scores, admitted = campaign_change_state(days, [0.0] * 5, 8, reference_records=3)
+    >>> admitted, [s is None for s in scores]
+    ([0, 1, 2], [True, True, False, False, False])
+    """
     if min_reference_records < 1 or reference_records < min_reference_records:
         raise ValueError("need 1 <= min_reference_records <= reference_records")
     if len(tooth1_pitch_angles_deg) != len(averages):
@@ -340,4 +371,4 @@ def campaign_change_scores(
         ):
             admitted.append(index)
         out.append(scores)
-    return out
+    return out, admitted

@@ -389,7 +389,7 @@ def _store(
     # records arrived in (before the alarm evaluation, which then sees the rescaled values).
     lock_rig(session, record.rig_id)
     refresh_running_baselines(session, record.campaign_id)
-    refresh_tooth_change(session, record.campaign_id)  # the per-tooth change, same order rule
+    refresh_tooth_change(session, record.campaign_id, record.id)  # the per-tooth change, same rule
     changes: tuple[Any, ...] = ()
     if first_acceptance:  # a record enters its campaign's tooth-frame reference once
         _fold_tooth_frames(session, record, analysis)

@@ -6,7 +6,10 @@ records taken before it, like NA4's running baseline (:mod:`gearwatch.usecases.r
 :func:`refresh_tooth_change` recomputes, after each accepted record, the ``change`` values of
 every accepted record of the campaign from the stored averages in ``taken_at`` order, and
 writes only what differs: in order, only the new record's values are written; a record that
-arrives late rewrites those of the records after it. The alarm evaluation that follows
+arrives late rewrites those of the records after it. The record that arrives *last* in
+``taken_at`` order (a live rig's every record) is scored from the campaign's first records alone
+once they hold a complete reference (:func:`dsp.toothchange.campaign_change_state`): its cost does
+not grow with the campaign (a rig recording every 10 minutes has thousands of records). The alarm evaluation that follows
 (:func:`gearwatch.usecases.alarms.evaluate_record`) replays the tracks of a late record, so the
 ``change`` alarms are a function of the set of accepted records, whatever order they arrived in.
 
@@ -26,7 +29,7 @@ import numpy as np
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from dsp.toothchange import campaign_change_scores
+from dsp.toothchange import DEFAULT_REFERENCE_RECORDS, campaign_change_scores, campaign_change_state
 from gearwatch.floor.results import HISTORY_TOOTH_INDICATORS
 from storage.models import (
     Campaign,
@@ -47,10 +50,13 @@ RELATIVE_TOLERANCE = 1e-9
 """Stored values this close to the recomputed ones are kept (float32 curves, summation order)."""
 
 
-def refresh_tooth_change(session: Session, campaign_id: int) -> int:
+def refresh_tooth_change(session: Session, campaign_id: int, record_id: int | None = None) -> int:
     """Bring the stored ``change`` values of the campaign's accepted records (current result
     versions) in line with their ``taken_at`` order; returns how many rows were written or removed.
 
+    ``record_id``: the record just stored. When it is the last in ``taken_at`` order, only its
+    own values can change, and they are computed from the campaign's first records (module
+    docstring); otherwise, or without it, every record is recomputed.
     The caller holds the rig's lock (:func:`gearwatch.usecases.running_baselines.lock_rig`)."""
     pinion_teeth = session.execute(
         sa.select(Rig.pinion_teeth).join(Campaign, Campaign.rig_id == Rig.id)
@@ -59,29 +65,32 @@ def refresh_tooth_change(session: Session, campaign_id: int) -> int:
     if not pinion_teeth:
         return 0
     by_channel: dict[int, list[tuple[ChannelResult, int, int, object]]] = defaultdict(list)
-    for channel_result, record_id, _, rig_id, taken_at in RecordRepository(
+    for channel_result, row_record_id, _, rig_id, taken_at in RecordRepository(
         session
     ).current_channel_results(campaign_id):
-        by_channel[channel_result.channel_id].append((channel_result, record_id, rig_id, taken_at))
+        by_channel[channel_result.channel_id].append(
+            (channel_result, row_record_id, rig_id, taken_at))
     written = 0
     for channel_id, rows in by_channel.items():
-        written += _refresh_channel(session, int(pinion_teeth), channel_id, rows)
+        appended = None
+        if record_id is not None and rows[-1][1] == record_id:
+            appended = _refresh_last(session, int(pinion_teeth), channel_id, rows)
+        written += (appended if appended is not None
+                    else _refresh_channel(session, int(pinion_teeth), channel_id, rows))
     if written:
         logger.info("campaign %s: %s per-tooth change value(s) written", campaign_id, written)
     session.flush()
     return written
 
 
-def _refresh_channel(
-    session: Session,
-    pinion_teeth: int,
-    channel_id: int,
+def _averages(
+    session: Session, pinion_teeth: int, channel_id: int,
     rows: list[tuple[ChannelResult, int, int, object]],
-) -> int:
-    result_ids = [row[0].result_id for row in rows]
+) -> tuple[list[np.ndarray | None], list[float]]:
+    """The stored pinion averages (None where unusable) and tooth-1 angles of ``rows``."""
     curves = dict(session.execute(
         sa.select(Curve.result_id, Curve.data).where(
-            Curve.result_id.in_(result_ids), Curve.channel_id == channel_id,
+            Curve.result_id.in_([row[0].result_id for row in rows]), Curve.channel_id == channel_id,
             Curve.name == "pinion_average")
     ).all())
     averages: list[np.ndarray | None] = []
@@ -97,7 +106,58 @@ def _refresh_channel(
         else:
             averages.append(None)
             angles.append(0.0)
-    scores = campaign_change_scores(averages, angles, pinion_teeth)
+    return averages, angles
+
+
+def _refresh_channel(
+    session: Session,
+    pinion_teeth: int,
+    channel_id: int,
+    rows: list[tuple[ChannelResult, int, int, object]],
+) -> int:
+    averages, angles = _averages(session, pinion_teeth, channel_id, rows)
+    return _write(session, pinion_teeth, channel_id, rows,
+                  campaign_change_scores(averages, angles, pinion_teeth))
+
+
+def _refresh_last(
+    session: Session,
+    pinion_teeth: int,
+    channel_id: int,
+    rows: list[tuple[ChannelResult, int, int, object]],
+) -> int | None:
+    """Score the last record of ``rows`` from the shortest prefix of the others that holds a
+    complete reference of its average's length; ``None`` when no prefix does (then the whole
+    campaign is recomputed: it is short)."""
+    earlier = rows[:-1]
+    (last_average,), (last_angle,) = _averages(session, pinion_teeth, channel_id, rows[-1:])
+    if last_average is None:  # no score: nothing of anyone else changes either
+        return _write(session, pinion_teeth, channel_id, rows[-1:], [None])
+    prefix = min(len(earlier), 2 * DEFAULT_REFERENCE_RECORDS)
+    while prefix >= DEFAULT_REFERENCE_RECORDS:
+        averages, angles = _averages(session, pinion_teeth, channel_id, earlier[:prefix])
+        scores, admitted = campaign_change_state(
+            [*averages, last_average], [*angles, last_angle], pinion_teeth)
+        complete = sum(1 for i in admitted
+                       if i < prefix and (a := averages[i]) is not None
+                       and a.size == last_average.size) >= DEFAULT_REFERENCE_RECORDS
+        if complete:
+            return _write(session, pinion_teeth, channel_id, rows[-1:], scores[-1:])
+        if prefix == len(earlier):
+            return None
+        prefix = min(len(earlier), 2 * prefix)
+    return None
+
+
+def _write(
+    session: Session,
+    pinion_teeth: int,
+    channel_id: int,
+    rows: list[tuple[ChannelResult, int, int, object]],
+    scores: list[np.ndarray | None],
+) -> int:
+    """Store ``scores`` as the ``change`` rows of ``rows``, writing only what differs."""
+    result_ids = [row[0].result_id for row in rows]
     stored: dict[tuple[int, int], ToothIndicator] = {
         (item.result_id, item.tooth): item
         for item in session.scalars(sa.select(ToothIndicator).where(

@@ -16,7 +16,7 @@ from detection.default_rules import CHANGE_RULE
 from gearwatch.usecases.alarms import evaluate_record
 from gearwatch.usecases.running_baselines import lock_rig
 from gearwatch.usecases.tooth_change import refresh_tooth_change
-from storage.models import ToothIndicator
+from storage.models import Campaign, ToothIndicator
 from storage.repositories import (
     AlarmRepository,
     AlarmRuleRepository,
@@ -33,11 +33,12 @@ SPALL_TOOTH, ONSET = 7, 6
 TOOTH1_DEG = 9.0  # campaign_config's rig
 
 
-def _ingest(session: Session, tag: str, order: list[int]) -> int:
+def _ingest(session: Session, tag: str, order: list[int], *, days: int = DAYS,
+            onset: int = ONSET) -> int:
     campaign = CampaignRepository(session).ensure(campaign_config(f"camp-{tag}", f"rig-{tag}"))
     AlarmRuleRepository(session).create(campaign.rig_id, "change", **CHANGE_RULE)
     session.commit()
-    averages = simulated_days(TEETH, DAYS, noise=0.02, seed=3, spall=(SPALL_TOOTH, ONSET, 0.12),
+    averages = simulated_days(TEETH, days, noise=0.02, seed=3, spall=(SPALL_TOOTH, onset, 0.12),
                               tooth1_deg=TOOTH1_DEG)
     records = RecordRepository(session)
     for index in order:
@@ -51,7 +52,7 @@ def _ingest(session: Session, tag: str, order: list[int]) -> int:
         records.mark_accepted(record, result_analysis)
         result = records.add_result(record, result_analysis)
         lock_rig(session, record.rig_id)
-        refresh_tooth_change(session, record.campaign_id)
+        refresh_tooth_change(session, record.campaign_id, record.id)  # as ingest_file does
         evaluate_record(session, record, result)
         session.commit()
     return campaign.rig_id
@@ -89,3 +90,40 @@ def test_change_values_and_alarms_do_not_depend_on_arrival_order(
     assert {a.tooth for a in alarms} == {SPALL_TOOTH}
     first = min(a.raised_at for a in alarms)
     assert first == T0 + dt.timedelta(days=ONSET - 1)
+
+
+def test_a_record_arriving_last_is_scored_from_the_reference_alone_and_equals_a_full_recompute(
+    db_session: Session, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A live rig's records arrive in order: once the campaign's first records hold a complete
+    reference (8 admitted), each new one is scored without recomputing the campaign — and the
+    stored values are exactly those of a full recomputation, in order and shuffled."""
+    from gearwatch.usecases import tooth_change
+
+    days, onset = 20, 16
+    full_recomputes = 0
+    real = tooth_change._refresh_channel
+
+    def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
+        nonlocal full_recomputes
+        full_recomputes += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(tooth_change, "_refresh_channel", counting)
+    sequential = _ingest(db_session, "c", list(range(days)), days=days, onset=onset)
+    # records 1-8 recompute (no complete reference before them), records 9-20 do not
+    assert full_recomputes == 8
+    campaign_id = db_session.execute(
+        sa.select(Campaign.id).where(Campaign.rig_id == sequential)).scalar_one()
+    written = refresh_tooth_change(db_session, campaign_id)
+    assert full_recomputes == 9, "the refresh without a record id recomputes the campaign"
+    assert written == 0  # and changes nothing
+
+    order = list(range(days))
+    random.Random(5).shuffle(order)
+    shuffled = _ingest(db_session, "d", order, days=days, onset=onset)
+    expected, got = _stored_changes(db_session, sequential), _stored_changes(db_session, shuffled)
+    assert len(expected) == (days - 2) * TEETH and got.keys() == expected.keys()
+    for key, value in expected.items():
+        assert got[key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
+    assert {a.tooth for a in AlarmRepository(db_session).list(rig_id=sequential)} == {SPALL_TOOTH}
