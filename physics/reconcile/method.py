@@ -46,6 +46,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from physics.config import GearPairModel
 from physics.reconcile.catalogue import (
@@ -115,6 +116,24 @@ def reconcile(
     -------
     ReconciliationResult
     """
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        return _reconcile(measured, model, reference, options, progress)
+
+
+BLAS_THREADS = 1
+"""BLAS threads while reconciling. The fitter's dense algebra is small (Jacobians of a few
+hundred orders by tens of parameters): with OpenBLAS's threads the strong-spall case of
+``benchmarks/bench_reconcile.py`` took 299 s of CPU and 197 s of wall time on an idle 2-core
+machine, with one thread 179 s and 179 s — the threads spun more than they computed."""
+
+
+def _reconcile(
+    measured: MeasuredRecord | HuntingSpectrum,
+    model: GearPairModel,
+    reference: MeasuredRecord | HuntingSpectrum | None,
+    options: ReconcileOptions | None,
+    progress: ProgressCallback | Progress | None,
+) -> ReconciliationResult:
     options = options or ReconcileOptions()
     prog = progress if isinstance(progress, Progress) else Progress(progress)
     own = prog.span(REFERENCE_SHARE, 1.0) if reference is not None else prog
