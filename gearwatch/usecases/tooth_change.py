@@ -126,9 +126,9 @@ def _refresh_last(
     channel_id: int,
     rows: list[tuple[ChannelResult, int, int, object]],
 ) -> int | None:
-    """Score the last record of ``rows`` from the shortest prefix of the others that holds a
-    complete reference of its average's length; ``None`` when no prefix does (then the whole
-    campaign is recomputed: it is short)."""
+    """Score the last record of ``rows`` from a prefix of the others (twice the reference's size,
+    doubled as needed) that holds a complete reference of its average's length; ``None`` when no
+    prefix does (then the whole campaign is recomputed)."""
     earlier = rows[:-1]
     (last_average,), (last_angle,) = _averages(session, pinion_teeth, channel_id, rows[-1:])
     if last_average is None:  # no score: nothing of anyone else changes either
