@@ -64,12 +64,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dsp.splines import (
-    bspline5_at as _bspline5_at,
-)
-from dsp.splines import (
-    bspline5_prefilter as _bspline5_prefilter,
-)
-from dsp.splines import (
+    bspline5_at,
+    bspline5_prefilter,
     hermite_coefficients,
     not_a_knot_slopes,
     piecewise_cubic_uniform,
@@ -387,12 +383,12 @@ def angle_resample_shafts(
         if cutoff_hz not in coefficients:
             filtered = x if cutoff_hz is None else angle_lowpass(x, sample_rate_hz, cutoff_hz)
             rows = np.array(filtered.reshape(-1, n), dtype=np.float64, order="C")  # a copy
-            _bspline5_prefilter(rows)
+            bspline5_prefilter(rows)
             coefficients[cutoff_hz] = rows
         rows = coefficients[cutoff_hz]
         flat_times = times.ravel()
         out = np.empty((rows.shape[0], flat_times.size))
         for r in range(rows.shape[0]):
-            _bspline5_at(rows[r], flat_times, out[r], float(sample_rate_hz))
+            bspline5_at(rows[r], flat_times, out[r], float(sample_rate_hz))
         results.append(out.reshape((*x.shape[:-1], n_revs, int(samples_per_rev))))
     return results

@@ -199,18 +199,18 @@ def test_quintic_kernels_match_scipy_ndimage() -> None:
     # positions at and next to both ends, where the mirror boundary acts.
     from scipy import ndimage
 
-    from dsp.angle import _bspline5_at, _bspline5_prefilter
+    from dsp.splines import bspline5_at, bspline5_prefilter
 
     rng = np.random.default_rng(7)
     x = rng.standard_normal((2, 5000))
     positions = np.concatenate([[0.0, 0.3, 1.7, 4998.2, 4999.0], rng.uniform(0, 4999, 2000)])
     coefficients = x.copy()
-    _bspline5_prefilter(coefficients)
+    bspline5_prefilter(coefficients)
     for row in range(2):
         ref_coefficients = ndimage.spline_filter1d(x[row], order=5, mode="mirror")
         np.testing.assert_allclose(coefficients[row], ref_coefficients, atol=1e-12)
         out = np.empty(positions.size)
-        _bspline5_at(coefficients[row], positions, out)
+        bspline5_at(coefficients[row], positions, out)
         ref = ndimage.map_coordinates(
             ref_coefficients, [positions], order=5, mode="mirror", prefilter=False
         )
@@ -223,11 +223,11 @@ def test_prefilter_all_lengths(n: int) -> None:
     # Short records take the single-chain path, long ones the 4 interleaved chains.
     from scipy import ndimage
 
-    from dsp.angle import _bspline5_prefilter
+    from dsp.splines import bspline5_prefilter
 
     x = np.random.default_rng(n).standard_normal((1, n))
     c = x.copy()
-    _bspline5_prefilter(c)
+    bspline5_prefilter(c)
     ref = ndimage.spline_filter1d(x[0], order=5, mode="mirror")
     np.testing.assert_allclose(c[0], ref, atol=1e-12 * max(1.0, np.abs(ref).max()))
 
