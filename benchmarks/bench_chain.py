@@ -29,9 +29,22 @@ Both sides are the best of ``--repeat`` fresh processes (the reference used to r
 ``repeat // 2`` times, once at ``--repeat 3``: its CPU time scatters from 2.7 to 4.6 s between
 single runs, mostly BLAS threads of its spline solve competing for the 2 cores).
 
-Measured 2026-11-27 (2-core machine, shared: load average 2.5–3.5 from another session's tests
-and benchmarks throughout; ``nice -n 5``, ``--whole-process --seconds 300 --repeat 3``, three runs,
-each best of 3 processes per side)::
+Measured 2026-11-27, second session, on an **idle** 2-core machine (``--whole-process --seconds 300
+--repeat 5``; the reference's best-of-5 CPU ranged 1.58–1.85 s over two runs)::
+
+    | process                              | wall s | CPU s | CPU ratio to the reference |
+    | `python -c pass`                     | 0.017  | 0.016 |                            |
+    | `gearwatch --help`                   | 0.048  | 0.048 |                            |
+    | `gearwatch analyze --json`           | 0.456  | 0.455 | 3.5× less (3.5–4.1×)       |
+    | straightforward scipy script         | 1.433  | 1.581 | 1                          |
+
+What changed since the table below: the CLI runs OpenBLAS with one thread unless told otherwise
+(:data:`gearwatch.cli.main.BLAS_THREADS_DEFAULT`: its idle threads spun for 0.1 s of CPU), the
+version is a constant instead of an ``importlib.metadata`` lookup (20 ms), and the outlier test's
+per-angle median is taken over at most 129 revolutions (30 ms). 0.575 → 0.455 s.
+
+The previous measurement (2026-11-27, first session; the machine shared: load average 2.5–3.5 from
+another session's tests and benchmarks throughout; ``nice -n 5``, ``--repeat 3``, three runs)::
 
     | process                              | wall s    | CPU s     | CPU ratio to the reference |
     | `python -c pass`                     | 0.03      | 0.03      |                            |
@@ -61,7 +74,10 @@ prefilter 0.04), outlier test 0.09 s, sample checks 0.08 s, sha256 of the 48 MB 
 0.04 s. In one long-lived process (the worker) numpy costs ~30 ms more per million samples than
 numba did (default mode above: 0.13 s for a 60 s record). What is left for 5× (≤ 0.55–0.6 s):
 the chain's numpy passes (~30 per resampled sample) — fusing the phase model into the spline
-evaluation, one float64 conversion per block instead of three — and numpy's own start-up.
+evaluation, one float64 conversion per block instead of three — and numpy's own start-up. On the
+idle machine the 0.455 s are: interpreter and imports ~0.11, angle resampling ~0.13 (quintic
+spline evaluation 10 ns per grid point, already at its best chunk size), the outlier test 0.03,
+the sample checks 0.06, sha256 0.024, page faults of the mapped file ~0.05 (system time).
 """
 
 from __future__ import annotations

@@ -22,7 +22,8 @@ __all__ = ["__version__"]
 
 
 def __getattr__(name: str) -> str:
-    """``gearwatch.__version__``, read on first access (it costs an ``importlib.metadata``)."""
+    """``gearwatch.__version__`` (:data:`gearwatch.floor.version.VERSION`), without importing the floor
+    on ``import gearwatch``."""
     if name == "__version__":
         from gearwatch.floor.version import package_version
 

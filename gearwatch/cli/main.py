@@ -54,7 +54,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+BLAS_THREADS_DEFAULT = "1"
+"""OpenBLAS threads of a ``gearwatch`` process unless ``OPENBLAS_NUM_THREADS`` says otherwise.
+
+gearwatch parallelises over records (worker processes), not inside BLAS: the per-record chain makes
+no BLAS call on long arrays, and OpenBLAS's idle threads spin — 0.1 s of the CPU of a 0.55 s
+``analyze`` (``benchmarks/bench_chain.py --whole-process``) — and oversubscribe the cores when
+several workers run. Set before numpy is first imported (it reads the variable once)."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", BLAS_THREADS_DEFAULT)
     from gearwatch.floor.logs import configure_cli_logging
 
     configure_cli_logging()

@@ -7,19 +7,14 @@ import subprocess
 from pathlib import Path
 
 
-@functools.cache
+VERSION = "0.1.0"
+"""The package's version, defined here once: ``pyproject.toml`` reads it
+(``[tool.setuptools.dynamic]``), so no ``importlib.metadata`` lookup (~20 ms) is paid at run time."""
+
+
 def package_version() -> str:
-    """The installed distribution's version (``0.0.0`` in a source tree never installed).
-
-    Read on first use, not at import: ``importlib.metadata`` costs tens of milliseconds that
-    ``gearwatch --help`` need not pay.
-    """
-    from importlib import metadata
-
-    try:
-        return metadata.version("gearwatch")
-    except metadata.PackageNotFoundError:
-        return "0.0.0"
+    """The package's version (:data:`VERSION`)."""
+    return VERSION
 
 
 def __getattr__(name: str) -> str:
