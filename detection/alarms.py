@@ -48,6 +48,10 @@ side of the baseline centre, see :class:`Baseline`):
 * **Self-referenced indicators** (:data:`SELF_REFERENCED_INDICATORS`, e.g. ``change``) are
   already in noise units against the track's own history: their baseline is fixed at centre 0,
   spread 1, and every value is scored.
+* **Record-relative indicators** (:data:`RECORD_RELATIVE_INDICATORS`, e.g. ``score``) compare a
+  tooth with the other teeth of the same record, 0 being the typical tooth: their baseline
+  centre is never taken below 0. A tooth that stood below the others and became as loud as
+  them (a load change) has not become worse than a typical tooth.
 """
 
 from __future__ import annotations
@@ -98,6 +102,15 @@ SELF_REFERENCED_INDICATORS: frozenset[str] = frozenset({"change"})
 robust z over the record's teeth). Their baseline is fixed — centre 0, spread 1 — and scoring
 starts with the first value: learning a second baseline from the first change scores would
 only delay the first alarm by ``min_baseline_records`` and measure noise against noise."""
+
+
+RECORD_RELATIVE_INDICATORS: frozenset[str] = frozenset({"score"})
+"""Indicators that compare a tooth with the other teeth of the same record (:mod:`dsp.toothscore`:
+0 is the record's typical tooth). Their baseline centre is never below 0: on ``tune-2`` of
+``benchmarks/bench_detection.py`` (project generator, 50 healthy campaigns) 3 of the 5 healthy
+campaigns with a ``score`` alarm were teeth scoring −4…−6 on their baseline days that rose to
+about 0 on a load change; with the centre at 0 none of those alarmed, for onset-day detections
+44 → 42 of 50 (the ``change`` rule, alarming beside it, caught both)."""
 
 
 def indicator_direction(indicator: str) -> Direction:
@@ -396,6 +409,8 @@ def _grown_baseline(
         direction=rule.direction,
         widen_small_samples=rule.min_baseline_records is not None,
     )
+    if rule.indicator in RECORD_RELATIVE_INDICATORS and baseline.centre < 0:
+        baseline = replace(baseline, centre=0.0)
     return {"baseline_values": collected, "baseline": baseline}
 
 

@@ -36,6 +36,23 @@ Method
    Gaussian; the record's own spread over its teeth is the noise unit, so no noise model is
    assumed, and a change that moves all teeth together (a noisier day, a drift of the path)
    moves the median, not the score.
+6. **Loud teeth change more** (``signature_energy``): a tooth with a strong manufacturing
+   signature (an index error, a profile error) changes more with the day's load and speed than
+   a quiet one, beyond the first-order part the projection removes. Each record says how much:
+   ``β`` = the median, over the louder half of the teeth, of ``(E_k − median E)/S_k`` (``S_k``
+   the reference signature's energy in the sector; a median over half the teeth, so one spalled
+   tooth cannot set it), and ``E_k`` is compared with ``median E + β·S_k``, what that tooth
+   would show from the day's operating change alone. A quiet tooth is unaffected; a new
+   transient on a loud tooth must exceed what its loudness explains. Chosen on ``tune-2``
+   (seeds 60–159, 50 healthy campaigns per generator, ``benchmarks/bench_detection.py``): the
+   healthy campaigns with a change alarm fell from 2 to 0 (project generator) and 1 to 0
+   (independent); onset-day detections 42 → 41 of 50 and 4 → 5 of 50.
+
+The reference needs :data:`DEFAULT_MIN_REFERENCE_RECORDS` = 3 records (the fourth record is the
+first scored): with 2, a reference sector that happened to be noisy showed as change on every
+later day, and kept those days out of the reference (they scored above
+:data:`REFERENCE_ADMIT_SCORE`), so it never improved — 2 of the 4 healthy ``tune-2`` campaigns
+with a change alarm (project generator), none of the onset-day detections.
 
 Why the sector lags half a pitch
 --------------------------------
@@ -73,8 +90,9 @@ from gearwatch.floor.defaults import MAD_TO_SIGMA
 DEFAULT_REFERENCE_RECORDS = 8
 """Earlier records averaged into the reference (the first ones of the campaign)."""
 
-DEFAULT_MIN_REFERENCE_RECORDS = 2
-"""A record is scored once this many earlier records exist (the third record of a campaign)."""
+DEFAULT_MIN_REFERENCE_RECORDS = 3
+"""A record is scored once this many earlier records exist (the fourth record of a campaign;
+module docstring)."""
 
 REFERENCE_ADMIT_SCORE = 3.5
 """A scored record joins the reference (while it holds fewer than ``reference_records``) only if
@@ -233,22 +251,60 @@ def tooth_change_energy(
     return energy
 
 
-def change_scores(energy: ArrayLike) -> NDArray[np.float64]:
-    """Robust z of ``ln E`` over the teeth of one record (module docstring, step 5).
+def change_scores(
+    energy: ArrayLike, signature_energy: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """Robust z of ``ln E`` over the teeth of one record (module docstring, steps 5 and 6).
+
+    Parameters
+    ----------
+    energy : array_like of float, shape (Z1,)
+        Per-tooth change energy (:func:`tooth_change_energy`), positive.
+    signature_energy : array_like of float, shape (Z1,), optional
+        Per-tooth energy of the reference's own tooth-specific content in the same sectors.
+        Given, each tooth's energy is first divided by what its loudness explains,
+        ``(median E + β·S_k)/median E`` (step 6).
 
     Examples
     --------
     >>> change_scores([1.0, 1.1, 0.9, 1.0, 1.05, 0.95, 8.0]).round(1)
     array([ 0. ,  1.3, -1.4,  0. ,  0.6, -0.7, 27.3])
+
+    Every tooth changed in proportion to its loudness (``E ≈ 1 + 0.2·S``): the loud tooth 7
+    (signature 40) stands out much less; the same change on a quiet tooth stands out more:
+
+    >>> energy = [1.0, 1.2, 1.8, 1.05, 1.4, 0.95, 9.0, 1.02]
+    >>> loudness = [0.1, 1.0, 4.0, 0.2, 2.0, 0.1, 40.0, 0.1]
+    >>> round(float(change_scores(energy)[6]), 1), round(float(change_scores(energy, loudness)[6]), 1)
+    (9.9, 3.7)
+    >>> loudness[6] = 0.1
+    >>> round(float(change_scores(energy, loudness)[6]), 1)
+    16.6
     """
     values = np.asarray(energy, dtype=np.float64)
     if values.ndim != 1 or values.size < 3:
         raise ValueError(f"energy must be 1-D with at least three teeth, got {values.shape}")
     logs = np.log(np.fmax(values, np.finfo(np.float64).tiny))
+    if signature_energy is not None:
+        logs = logs - np.log(_loudness_factor(values, np.asarray(signature_energy, np.float64)))
     centre = float(np.median(logs))
     spread = max(MAD_TO_SIGMA * float(np.median(np.abs(logs - centre))), _MIN_LOG_SPREAD)
     scores: NDArray[np.float64] = (logs - centre) / spread
     return scores
+
+
+def _loudness_factor(energy: NDArray[np.float64], signature: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``(median E + β·S_k) / median E`` per tooth (module docstring, step 6); ones when no tooth
+    has a signature."""
+    if signature.shape != energy.shape:
+        raise ValueError(f"signature_energy must have the shape of energy {energy.shape}")
+    typical = float(np.median(energy))
+    loud = (signature >= np.median(signature)) & (signature > 0)
+    if typical <= 0 or not loud.any():
+        return np.ones_like(energy)
+    beta = max(0.0, float(np.median((energy[loud] - typical) / signature[loud])))
+    factor: NDArray[np.float64] = (typical + beta * np.fmax(signature, 0.0)) / typical
+    return factor
 
 
 def _usable_spectrum(average: ArrayLike, pinion_teeth: int) -> NDArray[np.complex128] | None:
@@ -337,7 +393,7 @@ def campaign_change_state(
     ...         for _ in range(5)]
     >>> scores, admitted = campaign_change_state(days, [0.0] * 5, 8, reference_records=3)
     >>> admitted, [s is None for s in scores]
-    ([0, 1, 2], [True, True, False, False, False])
+    ([0, 1, 2], [True, True, True, False, False])
     """
     if min_reference_records < 1 or reference_records < min_reference_records:
         raise ValueError("need 1 <= min_reference_records <= reference_records")
@@ -363,9 +419,11 @@ def campaign_change_state(
                 change, pinion_teeth, tooth1_pitch_angles_deg[index], lag_pitch=lag_pitch,
                 signature=signature,
             )
+            loudness = tooth_change_energy(
+                signature, pinion_teeth, tooth1_pitch_angles_deg[index], lag_pitch=lag_pitch)
             reference_wave = np.fft.irfft(reference, lengths[index])
             floor = RESOLUTION_ENERGY_FRACTION * float(np.sum(reference_wave**2)) / pinion_teeth
-            scores = change_scores(np.fmax(energy, floor))
+            scores = change_scores(np.fmax(energy, floor), loudness)
         if len(earlier) < reference_records and (
             scores is None or float(np.max(scores)) <= REFERENCE_ADMIT_SCORE
         ):

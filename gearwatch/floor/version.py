@@ -6,7 +6,6 @@ import functools
 import subprocess
 from pathlib import Path
 
-
 VERSION = "0.1.0"
 """The package's version, defined here once: ``pyproject.toml`` reads it
 (``[tool.setuptools.dynamic]``), so no ``importlib.metadata`` lookup (~20 ms) is paid at run time."""

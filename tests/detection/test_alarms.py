@@ -382,3 +382,16 @@ def test_wind_turbine_raw_kurtosis_alarms_on_the_first_risen_record() -> None:
     raw_kurtosis = [3.041, 3.007, 3.142, 3.097, 3.097, 3.381, 3.887, 3.938, 4.606, 5.437]
     states, _ = run(raw_kurtosis, RuleSettings("raw_kurtosis", **DEFAULT_RULES["raw_kurtosis"]))
     assert states.index("alarm") == 6
+
+
+def test_a_quiet_tooth_becoming_typical_is_not_an_alarm_standing_out_is() -> None:
+    """``score`` is relative to the record's other teeth (0 = typical): its baseline centre is
+    never below 0. The same values on an indicator without that rule would alarm."""
+    quiet_then_typical = [-4.0, -5.0, -4.5, 0.3, 0.5, 0.2, 0.4]
+    states, _ = run(quiet_then_typical, score_rule())
+    assert states[-1] is None and all(s is None for s in states)
+    absolute = RuleSettings("mci_depth_se", **{  # same settings, an ordinary indicator
+        k: v for k, v in score_rule().__dict__.items() if k not in ("indicator", "direction")})
+    assert run(quiet_then_typical, absolute)[0][-1] is not None
+    standing_out = [-4.0, -5.0, -4.5, 5.0, 6.0, 7.0]
+    assert run(standing_out, score_rule())[0][-1] is not None

@@ -445,8 +445,8 @@ def test_can_replay_stores_exactly_what_the_file_replay_stores(
     assert len(from_files) == len(over_can) == CAMPAIGN_DAYS
     for day, (expected, got) in enumerate(zip(from_files, over_can, strict=True), start=1):
         assert got["status"] == expected["status"] == "accepted", day
-        # the change indicator from the third record on (two reference records before it)
-        expected_indicators = TOOTH_INDICATORS + (HISTORY_TOOTH_INDICATORS if day > 2 else ())
+        # the change indicator from the fourth record on (three reference records before it)
+        expected_indicators = TOOTH_INDICATORS + (HISTORY_TOOTH_INDICATORS if day > 3 else ())
         assert len(got["result"]["teeth"]) == 20 * len(expected_indicators), day
         for key in expected:
             if key == "result":
