@@ -46,7 +46,8 @@ Method
    transient on a loud tooth must exceed what its loudness explains. Chosen on ``tune-2``
    (seeds 60–159, 50 healthy campaigns per generator, ``benchmarks/bench_detection.py``): the
    healthy campaigns with a change alarm fell from 2 to 0 (project generator) and 1 to 0
-   (independent); onset-day detections 42 → 41 of 50 and 4 → 5 of 50.
+   (independent); onset-day detections 42 → 41 of 50 and 4 → 5 of 50. On ``tune`` (seeds
+   0–59, 30 healthy each) it went 0 → 0 and 0 → 1 healthy campaigns alarmed.
 
 The reference needs :data:`DEFAULT_MIN_REFERENCE_RECORDS` = 3 records (the fourth record is the
 first scored): with 2, a reference sector that happened to be noisy showed as change on every
