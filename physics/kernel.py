@@ -70,6 +70,13 @@ MAX_PAIRS = 6
 S_Z0, S_Z1, S_GAP, S_K, S_W, S_U, S_SLIDE = range(7)
 N_SEG_ROWS = 7
 
+# The helpers that ``integrate`` calls every step with arrays (``_relief``, ``_build_segments``,
+# ``_contact_sums``, ``_friction_sums``) allocate nothing and are compiled without numba's
+# reference-counting runtime (``_nrt=False``): with it, each call incremented and decremented
+# every array argument's count with atomic instructions, about half the integration time.
+# Same arithmetic, bit-identical records (checked on spalls, cracks, friction, linear mesh).
+_step_helper = njit(cache=True, fastmath=True, _nrt=False)  # type: ignore[call-overload]
+
 
 @njit(cache=True, fastmath=True, inline="always")
 def _overlap(lo: float, hi: float, a: float, b: float) -> float:
@@ -93,7 +100,7 @@ def _shape(x: float, exponent: float) -> float:
     return x**exponent
 
 
-@njit(cache=True, fastmath=True)
+@_step_helper
 def _relief(u: float, p: np.ndarray) -> float:
     start, end, exponent = p[P_START], p[P_END], p[P_RELIEF_EXP]
     removed = 0.0
@@ -115,7 +122,7 @@ def _profile_factor(u: float, p: np.ndarray) -> float:
     return 1.0 - p[P_KPROFILE_A] * (xi * xi - 1.0 / 3.0)
 
 
-@njit(cache=True, fastmath=True)
+@_step_helper
 def _build_segments(
     s_m: float,
     travel_m: float,
@@ -216,7 +223,7 @@ def _build_segments(
     return n_seg
 
 
-@njit(cache=True, fastmath=True)
+@_step_helper
 def _contact_sums(
     n_seg: int,
     p0: float,
@@ -279,7 +286,7 @@ def _contact_sums(
     sums[6] = margin
 
 
-@njit(cache=True, fastmath=True)
+@_step_helper
 def _friction_sums(
     n_seg: int,
     p0: float,
