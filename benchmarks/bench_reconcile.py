@@ -1,6 +1,7 @@
 """Reconciliation speed (recording → report, one core) and the blinded score table.
 
     .venv/bin/python benchmarks/bench_reconcile.py                 # speed table, full options
+    .venv/bin/python benchmarks/bench_reconcile.py --cases strong  # one speed case (substring)
     .venv/bin/python benchmarks/bench_reconcile.py --blinded 3     # + blinded run, 3 per class
     .venv/bin/python benchmarks/bench_reconcile.py --no-speed --blinded 200 --classes control \
         --jobs 2 --jsonl controls.jsonl                            # the ≥ 200-run control proof
@@ -9,7 +10,9 @@
 Speed: each record is simulated (24 s), written to WAV, then timed in CPU seconds from reading
 the file to the JSON and the HTML report, with the default options (64 samples per mesh, band up
 to 0.4 × fs, the default scan). Budget (issue 15): ≤ 120 s of CPU per record including a
-reference.
+reference (met since 2026-11-27: 22 / 65 / 36 s, docs/reconciliation.md). CPU seconds of the same
+code move between sessions by a quarter: compare two versions only back to back, with
+``nice -n 5`` on a shared machine.
 """
 
 from __future__ import annotations
