@@ -32,6 +32,7 @@ import math
 
 import numpy as np
 from numba import njit
+from numba.core.cpu import CPUTargetOptions
 
 # Indices into the float parameter vector.
 P_RB1, P_RB2, P_PB, P_U0, P_START, P_END, P_KLEN, P_ETA, P_HALF_FACE = range(9)
@@ -75,7 +76,10 @@ N_SEG_ROWS = 7
 # reference-counting runtime (``_nrt=False``): with it, each call incremented and decremented
 # every array argument's count with atomic instructions, about half the integration time.
 # Same arithmetic, bit-identical records (checked on spalls, cracks, friction, linear mesh).
-_step_helper = njit(cache=True, fastmath=True, _nrt=False)  # type: ignore[call-overload]
+# ``_nrt`` is a private numba option (there since 2015, numba/numba#2350): a numba without it
+# gets the plain decorator, slower and otherwise the same, instead of a KeyError at first call.
+_NO_REFCOUNT = {"_nrt": False} if hasattr(CPUTargetOptions, "_nrt") else {}
+_step_helper = njit(cache=True, fastmath=True, **_NO_REFCOUNT)  # type: ignore[call-overload]
 
 
 @njit(cache=True, fastmath=True, inline="always")
