@@ -118,3 +118,23 @@ def test_bad_input_gives_one_clear_line_and_a_nonzero_exit(campaign_dir: Path) -
         assert len(lines) == 1 and lines[0].startswith("gearwatch: error:"), (case, result.stderr)
     unknown = run_cli(*bad_input_cases(campaign_dir)["unknown manifest key"])
     assert "speeed" in unknown.stderr
+
+
+@pytest.mark.parametrize(("environment", "expected"), [({}, 1), ({"OPENBLAS_NUM_THREADS": "2"}, 2)])
+def test_the_cli_runs_openblas_with_one_thread_unless_told_otherwise(
+    environment: dict[str, str], expected: int
+) -> None:
+    """``gearwatch`` sets ``OPENBLAS_NUM_THREADS`` before numpy is imported (its idle threads
+    spun for a fifth of ``analyze``'s CPU); a value the user set wins."""
+    import os
+
+    probe = (
+        "from gearwatch.cli.main import main\n"
+        "try:\n    main(['--version'])\nexcept SystemExit:\n    pass\n"
+        "import numpy\nfrom threadpoolctl import threadpool_info\n"
+        "print(sum(p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas'))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"} | environment
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          timeout=120, env=env, check=True)
+    assert int(done.stdout.strip().splitlines()[-1]) == expected
