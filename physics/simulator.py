@@ -388,26 +388,56 @@ MAX_WARMUP_STRETCH_S = 1.0
 """Longest extension of the warm-up used to start a record on the tach reference."""
 
 
+def _start_margin(model: GearPairModel) -> float:
+    """Pinion angle (rad) by which a record starts before its reference tach edge."""
+    tach, geo = model.tachometer, model.geometry
+    tach_per_pinion = 1.0 if tach.shaft == "pinion" else geo.pinion_teeth / geo.gear_teeth
+    edge_spacing = 2 * math.pi / (tach.pulses_per_rev * tach_per_pinion)
+    return 0.1 * min(edge_spacing, 2 * math.pi)
+
+
+def warmup_revolutions(model: GearPairModel, speed_rpm: float | None = None) -> int | None:
+    """Whole pinion revolutions from the mesh origin (pinion tooth 1 and gear tooth 1 together
+    at the pitch point) to the record's first tach edge, or ``None`` for a shaft so slow that
+    the warm-up is not stretched to a mark.
+
+    Just after that edge pinion tooth 1 meets gear tooth ``(m·Z1 mod Z2) + 1``: the gear teeth
+    of a configuration are numbered from the mesh origin, so which of them is in mesh at a
+    record's first edge depends on the warm-up and the speed.
+
+    >>> warmup_revolutions(GearPairModel())  # 1000 rpm, 0.2 s of warm-up: 3.3 revolutions
+    4
+    """
+    rpm = model.operating.speed_rpm if speed_rpm is None else speed_rpm
+    return _warmup_revolutions_at(model, rpm * 2 * math.pi / 60)
+
+
+def _warmup_revolutions_at(model: GearPairModel, speed_rad_s: float) -> int | None:
+    acq = model.acquisition
+    margin = _start_margin(model)
+    m = math.ceil((speed_rad_s * acq.warmup_s + margin) / (2 * math.pi))
+    if (2 * math.pi * m - margin) / speed_rad_s > acq.warmup_s + MAX_WARMUP_STRETCH_S:
+        return None
+    return m
+
+
 def _record_start(model: GearPairModel, speed_rad_s: float) -> tuple[int, float]:
     """Warm-up steps and tach-mark offset so the record's first tach edge is the reference.
 
     The pipeline counts revolutions from the first tach edge of a record and measures the
     pinion angle from it. The warm-up is stretched (by less than a revolution) so that the
-    record starts just before the pinion passes its mark (angle 2πm); a gear-shaft mark is
-    placed where the gear is at that instant. Returns (warm-up steps, mark offset in rad of
-    the tach shaft).
+    record starts just before the pinion passes its mark (angle 2πm, m =
+    :func:`warmup_revolutions`); a gear-shaft mark is placed where the gear is at that instant.
+    Returns (warm-up steps, mark offset in rad of the tach shaft).
     """
     acq, tach, geo = model.acquisition, model.tachometer, model.geometry
     tach_per_pinion = 1.0 if tach.shaft == "pinion" else geo.pinion_teeth / geo.gear_teeth
-    # Pinion angle between tach edges; start a small fraction of it before the reference edge.
-    edge_spacing = 2 * math.pi / (tach.pulses_per_rev * tach_per_pinion)
-    margin = 0.1 * min(edge_spacing, 2 * math.pi)
-    m = math.ceil((speed_rad_s * acq.warmup_s + margin) / (2 * math.pi))
-    start_angle = 2 * math.pi * m - margin
-    if start_angle / speed_rad_s > acq.warmup_s + MAX_WARMUP_STRETCH_S:
+    m = _warmup_revolutions_at(model, speed_rad_s)
+    if m is None:
         # Very slow shaft: keep the requested warm-up; the record's tooth-1 angle is then
         # reported as measured (SimulationResult.tooth1_pitch_angle_deg).
         return max(1, round(acq.warmup_s * acq.sample_rate_hz)) * acq.oversampling, 0.0
+    start_angle = 2 * math.pi * m - _start_margin(model)
     warm_samples = max(1, math.floor(start_angle / speed_rad_s * acq.sample_rate_hz))
     offset = math.fmod(2 * math.pi * m * tach_per_pinion, 2 * math.pi / tach.pulses_per_rev)
     return warm_samples * acq.oversampling, offset

@@ -457,6 +457,32 @@ def measured_of_independent(scenario: IndependentScenario) -> MeasuredRecord:
                           np.asarray(pulses, dtype=float), 1)
 
 
+INDEPENDENT_FIRST_EDGE_REVOLUTIONS = 1
+"""Whole pinion revolutions from the independent generator's mesh origin (pinion tooth 1 and
+gear tooth 1 at the pitch point, pinion angle φ1) to its record's first tach edge: the record
+starts at a random angle in the first revolution, so its first edge is the mark at 2π."""
+
+
+def gear_tooth_in_configuration(scenario: IndependentScenario, truth_tooth: int, speed_rpm: float) -> int:
+    """The independent truth's gear tooth in the fit configuration's numbering.
+
+    Both number gear teeth from their mesh origin, but the fit's forward model reaches the
+    record's first tach edge after :func:`physics.simulator.warmup_revolutions` revolutions (4 at
+    1000 rpm and 0.2 s) and the generator after :data:`INDEPENDENT_FIRST_EDGE_REVOLUTIONS`: the
+    gear tooth meeting pinion tooth 1 there differs by that many pinion revolutions (measured on
+    the blinded run before this mapping: every gear index error found, 9 of 9, named 3 teeth
+    before the truth's tooth on the 20/21 rig: (4 − 1)·20 ≡ −3 mod 21).
+    """
+    from physics.simulator import warmup_revolutions
+
+    z1, z2 = scenario.fit_model.geometry.pinion_teeth, scenario.fit_model.geometry.gear_teeth
+    m_fit = warmup_revolutions(scenario.fit_model, speed_rpm if speed_rpm > 0 else None)
+    if m_fit is None:
+        return truth_tooth
+    shift = (m_fit - INDEPENDENT_FIRST_EDGE_REVOLUTIONS) * z1
+    return (truth_tooth - 1 + shift) % z2 + 1
+
+
 def score_independent(scenario: IndependentScenario, result_json: dict[str, Any]) -> dict[str, Any]:
     """Grade one result against an independent scenario's key (as :func:`score`), plus: the
     class's right answer for friction on a line-of-action sensor (nothing named, friction stated
@@ -476,7 +502,10 @@ def score_independent(scenario: IndependentScenario, result_json: dict[str, Any]
         row["false_finding"] = bool(findings)
         row["right_answer"] = stated and not findings
         return row
-    h = scenario.hidden[0]
+    h = dict(scenario.hidden[0])
+    if h["wheel"] == "gear" and h["tooth"] is not None:
+        h["tooth"] = gear_tooth_in_configuration(
+            scenario, h["tooth"], float(result_json.get("record", {}).get("speed_rpm") or 0.0))
     if not findings:
         row.update(right_mechanism_and_place_first=False, right_place_first=False, absent_mechanism_named=False)
         return row

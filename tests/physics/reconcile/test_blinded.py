@@ -61,3 +61,38 @@ def test_in_catalogue_mechanism_named_located_and_measured(graded: list[dict[str
     # near-floor run is held to 25 %.
     assert float(row["parameter_error"]) <= 0.25, row  # type: ignore[arg-type]
     assert row["status"] == "explained", row
+
+
+def test_the_independent_truths_gear_teeth_are_scored_in_the_configurations_numbering() -> None:
+    """Both simulators number gear teeth from their mesh origin; the project's record reaches its
+    first tach edge after ``warmup_revolutions`` pinion revolutions (read here off a simulated
+    record's pinion angle), the independent generator's after one (its record starts at a random
+    angle in the first revolution). The scorer moves the truth's gear tooth by the difference:
+    on the 20/21 rig at 1000 rpm, 3·20 ≡ −3 (mod 21), the offset every gear index error found
+    had in the blinded run before this mapping."""
+    import dataclasses
+    import math
+
+    import numpy as np
+
+    from physics.independent import generate_record
+    from physics.reconcile.scenarios import (
+        INDEPENDENT_FIRST_EDGE_REVOLUTIONS,
+        default_base,
+        draw_independent,
+        gear_tooth_in_configuration,
+    )
+    from physics.simulator import simulate, warmup_revolutions
+
+    for rpm in (400.0, 1000.0, 3000.0):
+        model = default_base().replace(
+            operating=dataclasses.replace(default_base().operating, speed_rpm=rpm))
+        record = simulate(model, seconds=0.3, seed=1)
+        first = round(record.tach_pulse_times_s[0] * record.sample_rate_hz)
+        assert warmup_revolutions(model) == round(record.pinion_angle_rad[first] / (2 * math.pi))
+    scenario = draw_independent("indep_index_error", np.random.default_rng(2001), 2001, seconds=1.0)
+    truth = generate_record(scenario.truth, seed=scenario.seed).truth
+    assert math.ceil(truth["record"]["initial_pinion_angle_deg"] / 360.0) == INDEPENDENT_FIRST_EDGE_REVOLUTIONS
+    z2 = scenario.fit_model.geometry.gear_teeth
+    assert (scenario.fit_model.geometry.pinion_teeth, z2) == (20, 21)
+    assert [gear_tooth_in_configuration(scenario, t, 1000.0) for t in (21, 5, 1)] == [18, 2, 19]
