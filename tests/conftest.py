@@ -21,7 +21,6 @@ def service_unavailable(what: str, why: str) -> None:
     pytest.skip(message)
 
 
-
 COMPUTE_ONLY_FOLDERS = ("physics", "dsp", "detection")
 """Test folders that touch no service, port, queue or database. Under ``pytest -n 2 --dist
 loadgroup`` (README's test command) they run on one worker while every other test runs, in
