@@ -11,6 +11,12 @@ goes through ``h·Z`` cycles per revolution. This module
    FFT), unwraps the phase, divides it by ``h·Z`` → shaft angle, and interpolates the times at
    which that angle passes ``2π·n`` (:func:`tachless_shaft_angle`,
    :func:`shaft_pulse_times_from_mesh`).
+4. for a speed that swings by tens of per cent within the record (``follow_drift``): tracks the
+   speed frame by frame on the whole mesh comb (:func:`comb_shaft_cycles` — one harmonic
+   sweeping ±20 % crosses its neighbours' search windows, the comb does not), reads the line's
+   remaining phase in a band around that track, and accepts a line that stands out *along*
+   the track (:func:`dechirped_prominence_db`) although smeared over hundreds of bins of the
+   whole record's spectrum.
 
 Frame. A synthetic pulse is placed where the mesh phase is a whole number of mesh periods, so
 two records of the same rig are in the same frame up to a whole number of mesh periods (which
@@ -52,6 +58,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dsp.meshspectrum import (
+    COMB_CAP_NP,
     MIN_LINE_PROMINENCE_DB,
     TachlessError,
     _checked_signal,
@@ -66,6 +73,8 @@ __all__ = [
     "MIN_LINE_PROMINENCE_DB",
     "ShaftAngleEstimate",
     "TachlessError",
+    "comb_shaft_cycles",
+    "dechirped_prominence_db",
     "estimate_mesh_order",
     "estimate_pair_speed",
     "estimate_shaft_hz",
@@ -136,6 +145,8 @@ def tachless_shaft_angle(
     offset_mesh_periods: int = 0,
     search_fraction: float = 0.05,
     track_speed: bool = False,
+    follow_drift: bool = False,
+    shaft_cycles: ArrayLike | None = None,
 ) -> ShaftAngleEstimate:
     """Shaft angle from the phase of one mesh harmonic; synthetic once-per-rev pulses.
 
@@ -172,6 +183,17 @@ def tachless_shaft_angle(
         (heterodyne with the tracked phase, then the low-pass of ``bandwidth_orders``) instead
         of around a fixed frequency. Without it the speed may change by at most about
         ``bandwidth_orders / (harmonic × mesh_order)`` over the record (0.4 % for 80 teeth).
+    follow_drift : bool
+        With ``track_speed``: the speed is tracked frame by frame on the whole mesh comb
+        (:func:`comb_shaft_cycles`) instead of on the one line, and the line must stand
+        :data:`MIN_LINE_PROMINENCE_DB` above the floor along that track
+        (:func:`dechirped_prominence_db`) rather than in the whole record's spectrum, where a
+        speed drifting by tens of per cent smears it over many bins and across its neighbours'
+        search windows. Its phase can be noisier than that of a line that stands out in the
+        whole record: callers try it when no such line works.
+    shaft_cycles : array_like, optional
+        With ``follow_drift``: the tracked shaft revolutions at every sample, when the caller
+        has them already (:func:`comb_shaft_cycles` with the same arguments).
 
     Returns
     -------
@@ -205,21 +227,48 @@ def tachless_shaft_angle(
     duration_s = x.size / sample_rate_hz
     if approx_shaft_hz is None:
         approx_shaft_hz = _shaft_from_mesh_comb(x, sample_rate_hz, mesh_order, harmonic, duration_s)
-    line_hz, prominence_db = mesh_line_hz(
-        x, sample_rate_hz, mesh_order, approx_shaft_hz, harmonic=harmonic, search_fraction=search_fraction
-    )
     cycles_per_rev = harmonic * mesh_order
-    # Centre the band on the power centroid around the peak: a speed fluctuation spreads the
-    # line into FM sidebands, and the tallest of them need not be the carrier.
-    line_hz = _power_centroid_hz(x, sample_rate_hz, line_hz, bandwidth_orders * line_hz / cycles_per_rev)
-    shaft_hz = line_hz / cycles_per_rev
-    if track_speed:
+    if track_speed and follow_drift:
+        # The speed tracked on the whole mesh comb, frame by frame: a drift of tens of per
+        # cent moves one harmonic across its neighbours' search windows; the comb does not.
+        if shaft_cycles is None:
+            shaft_cycles = comb_shaft_cycles(
+                x, sample_rate_hz, mesh_order, approx_shaft_hz, search_fraction=search_fraction
+            )
+        ridge_cycles = cycles_per_rev * np.asarray(shaft_cycles, dtype=np.float64)
+        line_hz = float(ridge_cycles[-1] / duration_s)
+        ridge_cycles = _refined_ridge(x, sample_rate_hz, ridge_cycles, line_hz / cycles_per_rev)
+        prominence_db = dechirped_prominence_db(x, ridge_cycles)
+        if prominence_db < MIN_LINE_PROMINENCE_DB:
+            raise TachlessError(
+                f"no mesh line along the tracked speed (harmonic {harmonic} of order {mesh_order}, "
+                f"{line_hz:.6g} Hz on average): it stands {prominence_db:.1f} dB above the floor, "
+                f"{MIN_LINE_PROMINENCE_DB:.0f} dB needed"
+            )
+        shaft_hz = line_hz / cycles_per_rev
+        band = _analytic_band(
+            x * np.exp(-2j * np.pi * ridge_cycles), sample_rate_hz, 0.0, bandwidth_orders * shaft_hz,
+            two_sided=True,
+        )
+    elif track_speed:
+        line_hz, prominence_db = mesh_line_hz(
+            x, sample_rate_hz, mesh_order, approx_shaft_hz, harmonic=harmonic, search_fraction=search_fraction
+        )
+        # Centre the band on the power centroid around the peak: a speed fluctuation spreads
+        # the line into FM sidebands, and the tallest of them need not be the carrier.
+        line_hz = _power_centroid_hz(x, sample_rate_hz, line_hz, bandwidth_orders * line_hz / cycles_per_rev)
+        shaft_hz = line_hz / cycles_per_rev
         ridge_cycles = mesh_ridge_cycles(x, sample_rate_hz, line_hz, search_fraction=search_fraction)
         band = _analytic_band(
             x * np.exp(-2j * np.pi * ridge_cycles), sample_rate_hz, 0.0, bandwidth_orders * shaft_hz,
             two_sided=True,
         )
     else:
+        line_hz, prominence_db = mesh_line_hz(
+            x, sample_rate_hz, mesh_order, approx_shaft_hz, harmonic=harmonic, search_fraction=search_fraction
+        )
+        line_hz = _power_centroid_hz(x, sample_rate_hz, line_hz, bandwidth_orders * line_hz / cycles_per_rev)
+        shaft_hz = line_hz / cycles_per_rev
         ridge_cycles = np.zeros(x.size)
         band = _analytic_band(x, sample_rate_hz, line_hz, bandwidth_orders * shaft_hz)
 
@@ -334,6 +383,143 @@ def _power_centroid_hz(x: FloatArray, sample_rate_hz: float, centre_hz: float, h
     return float(np.sum(freq[inside] * power[inside]) / np.sum(power[inside]))
 
 
+MAX_COMB_HARMONICS = 8
+"""Mesh harmonics summed by :func:`comb_shaft_cycles` (those below 0.45 fs)."""
+
+
+def comb_shaft_cycles(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    mesh_order: int,
+    approx_shaft_hz: float,
+    *,
+    search_fraction: float = 0.2,
+    window_s: float | None = None,
+) -> FloatArray:
+    """Shaft revolutions at every sample, from a speed tracked frame by frame on the mesh comb.
+
+    In each Hann frame (half-overlapping; ``window_s`` defaults to 1/24 of the record, at least
+    60 mesh periods) every candidate shaft speed within ±``search_fraction`` of
+    ``approx_shaft_hz`` scores the summed log-prominence (:func:`dsp.meshspectrum.line_prominence`'s
+    measure, negative parts and above 40 dB cut) of its mesh harmonics ``h × mesh_order``,
+    ``h`` = 1…:data:`MAX_COMB_HARMONICS` below 0.45 fs; the best speed of each frame goes
+    through a robust polynomial fit (:func:`_robust_ridge`: frames far off it dropped), and the
+    kept frames are joined by a monotone cubic, integrated from 0. One harmonic drifting by
+    tens of per cent crosses into its neighbours' search windows; the comb as a whole does not.
+
+    Examples
+    --------
+    A 20-tooth mesh (harmonics 1–3) whose shaft swings from 16 to 19 Hz and back in 12 s:
+
+    >>> import numpy as np
+    >>> fs = 8000.0
+    >>> t = np.arange(int(12 * fs)) / fs
+    >>> shaft_hz = 17.5 - 1.5 * np.cos(2 * np.pi * t / 12)
+    >>> revs = np.cumsum(shaft_hz) / fs
+    >>> x = sum(np.cos(2 * np.pi * h * 20 * revs) / h for h in (1, 2, 3))
+    >>> x = x + 0.5 * np.random.default_rng(0).standard_normal(t.size)
+    >>> est = comb_shaft_cycles(x, fs, 20, 17.5)
+    >>> error_hz = np.abs(np.gradient(est, 1 / fs) - shaft_hz)[8000:-8000]   # 1 s from each end
+    >>> bool(error_hz.max() < 0.1)
+    True
+    """
+    import scipy.fft  # only without a tachometer: not on the tach path's imports
+    from scipy import ndimage
+    from scipy.interpolate import PchipInterpolator
+
+    x = _checked_signal(signal, sample_rate_hz)
+    duration_s = x.size / sample_rate_hz
+    mesh_hz = mesh_order * approx_shaft_hz
+    if window_s is None:
+        # Short frames: a speed swinging by tens of per cent moves within a long frame, and the
+        # band that follows the track is only ±0.3 shaft orders wide at the harmonic.
+        window_s = max(duration_s / 24.0, 60.0 / mesh_hz)
+    frame = min(x.size, max(64, int(window_s * sample_rate_hz)))
+    hop = max(1, frame // 2)
+    starts = np.arange(0, x.size - frame + 1, hop)
+    bin_hz = sample_rate_hz / frame
+    harmonics = np.arange(1, MAX_COMB_HARMONICS + 1)
+    harmonics = harmonics[harmonics * mesh_hz * (1 + search_fraction) < 0.45 * sample_rate_hz]
+    if harmonics.size == 0:
+        raise TachlessError(f"no mesh harmonic below 0.45 fs at about {approx_shaft_hz:.6g} Hz")
+    step = bin_hz / (2.0 * harmonics[-1] * mesh_order)
+    speeds = np.arange(approx_shaft_hz * (1 - search_fraction), approx_shaft_hz * (1 + search_fraction), step)
+    bins = np.rint(np.outer(speeds, harmonics * mesh_order) / bin_hz).astype(np.int64)
+    window = np.hanning(frame)
+    half = max(50, int(0.005 * (frame // 2 + 1)))
+    best, centres = [], []
+    for start in starts:
+        log_amplitude = np.log(np.abs(scipy.fft.rfft(x[start : start + frame] * window)) + 1e-300)
+        floor = ndimage.median_filter(log_amplitude, size=2 * half + 1, mode="nearest")
+        prominence = np.clip(log_amplitude - floor, 0.0, COMB_CAP_NP)
+        best.append(float(speeds[int(np.argmax(prominence[bins].sum(axis=1)))]))
+        centres.append((start + frame / 2) / sample_rate_hz)
+    t = np.arange(x.size) / sample_rate_hz
+    peaks, times = np.asarray(best), np.asarray(centres, dtype=np.float64)
+    if peaks.size < 4:
+        return np.asarray(float(np.median(peaks)) * t, dtype=np.float64)
+    fit, keep = _robust_ridge(times, peaks)
+    if keep.sum() < 4:
+        return np.asarray(fit.integ()(t) - fit.integ()(0.0), dtype=np.float64)
+    revolutions = PchipInterpolator(times[keep], peaks[keep], extrapolate=True).antiderivative()
+    return np.asarray(revolutions(t) - revolutions(0.0), dtype=np.float64)
+
+
+REFINE_BAND_ORDERS = 1.0
+"""Half-width (shaft orders) of the band in which a comb-tracked line's remaining phase is read."""
+
+REFINE_SMOOTH_S = 0.5
+"""That phase is averaged over this long: slower than the sidebands of either shaft inside the
+band, faster than a slow speed swell."""
+
+
+def _refined_ridge(x: FloatArray, sample_rate_hz: float, ridge_cycles: FloatArray, shaft_hz: float) -> FloatArray:
+    """``ridge_cycles`` plus the line's remaining phase: heterodyned by the ridge, the line is
+    within a fraction of an order of 0 Hz; its phase in a ±:data:`REFINE_BAND_ORDERS` band,
+    averaged over :data:`REFINE_SMOOTH_S`, is what the frame-wise track missed."""
+    wide = _analytic_band(
+        x * np.exp(-2j * np.pi * ridge_cycles), sample_rate_hz, 0.0, REFINE_BAND_ORDERS * shaft_hz,
+        two_sided=True,
+    )
+    residual = np.unwrap(np.angle(wide)) / (2.0 * np.pi)
+    n = max(1, min(residual.size // 4, int(REFINE_SMOOTH_S * sample_rate_hz)))
+    padded = np.pad(residual, (n, n), mode="reflect", reflect_type="odd")
+    kernel = np.ones(n) / n
+    smooth = np.convolve(padded, kernel, mode="same")[n : n + residual.size]
+    return np.asarray(ridge_cycles + smooth, dtype=np.float64)
+
+
+def dechirped_prominence_db(signal: ArrayLike, ridge_cycles: ArrayLike) -> float:
+    """Height (dB) of the line that follows ``ridge_cycles`` (its cycles at every sample) above
+    the floor around it.
+
+    The signal is heterodyned by the ridge's phase — a line that follows it becomes a line at
+    0 Hz — and that line's height is measured as :func:`dsp.meshspectrum.line_prominence`
+    does (Hann spectrum, log-amplitude above the median of the ±0.5 % (≥ 50) bins around it;
+    the highest of the ±2 bins at 0 Hz). Where the ridge follows nothing, nothing adds up at
+    0 Hz: the height stays at a noise bin's few dB.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(40_000) / 8000.0
+    >>> cycles = 1000.0 * t + 10.0 * t**2
+    >>> x = 0.2 * np.cos(2 * np.pi * cycles) + np.random.default_rng(0).standard_normal(t.size)
+    >>> bool(dechirped_prominence_db(x, cycles) > 20), bool(dechirped_prominence_db(x, 1000.0 * t) < 15)
+    (True, True)
+    """
+    import scipy.fft  # only without a tachometer: not on the tach path's imports
+
+    x = np.asarray(signal, dtype=np.float64)
+    baseband = x * np.exp(-2j * np.pi * np.asarray(ridge_cycles, dtype=np.float64)) * np.hanning(x.size)
+    log_amplitude = np.log(np.abs(np.fft.fftshift(scipy.fft.fft(baseband))) + 1e-300)
+    centre = x.size // 2
+    half = max(50, int(0.005 * x.size))
+    floor = float(np.median(log_amplitude[max(0, centre - half) : centre + half + 1]))
+    peak = float(log_amplitude[centre - 2 : centre + 3].max())
+    return 20.0 / math.log(10.0) * (peak - floor)
+
+
 def mesh_ridge_cycles(
     signal: ArrayLike,
     sample_rate_hz: float,
@@ -391,6 +577,23 @@ def mesh_ridge_cycles(
     degree = min(5, len(peaks) // 3)
     fit = np.polynomial.Polynomial.fit(np.asarray(centres), np.asarray(peaks), degree)
     return np.asarray(fit.integ()(t) - fit.integ()(0.0), dtype=np.float64)
+
+
+def _robust_ridge(centres: FloatArray, peaks: FloatArray) -> tuple[np.polynomial.Polynomial, NDArray[np.bool_]]:
+    """Polynomial (degree ≤ 5, fewer for few frames) through the frames' peak values, twice
+    dropping frames more than 3 robust spreads (at least 0.2 % of the median) off the fit; and
+    the frames kept. A frame whose maximum was a noise bin or another line is dropped."""
+    keep = np.ones(peaks.size, dtype=bool)
+    fit = np.polynomial.Polynomial.fit(centres, peaks, min(5, peaks.size // 3))
+    for _ in range(2):
+        residual = peaks - fit(centres)
+        spread = max(3.0 * 1.4826 * float(np.median(np.abs(residual[keep]))), 0.002 * float(np.median(peaks)))
+        inliers = keep & (np.abs(residual) <= spread)
+        if inliers.sum() < 3 or inliers.sum() == keep.sum():
+            break
+        keep = inliers
+        fit = np.polynomial.Polynomial.fit(centres[keep], peaks[keep], min(5, int(keep.sum()) // 3))
+    return fit, keep
 
 
 def _analytic_band(

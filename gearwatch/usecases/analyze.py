@@ -318,6 +318,10 @@ def _raw_metrics_only(
         tach_failure=reason,
         per_tooth=reason,
         tooth_frames={c.channel: c.tooth_frame for c in channels},
+        # the repairs are counted although no average uses them: the record's data quality
+        glitch_samples=sum(scan.defects.counts()["glitch_samples"] for scan in scans.values()),
+        dropout_samples=sum(scan.defects.counts()["dropout_samples"] for scan in scans.values()),
+        clipped_samples=sum(scan.defects.counts()["clipped_samples"] for scan in scans.values()),
     )
     return RecordAnalysis(
         channels=channels, quality=quality,

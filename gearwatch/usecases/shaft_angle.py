@@ -14,6 +14,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from dsp.robust import repair_spans
 from dsp.tach import (
     RecordOutOfTachLimits,
     TachAnalysis,
@@ -85,8 +86,12 @@ def record_shaft_angle(
             f"no shaft angle: {tach_failure}, and without tooth counts ([rig] pinion_teeth, "
             "gear_teeth) the mesh phase cannot stand in for it"
         )
+    # The mesh phase is read from the channels with their glitches, dropouts and clipped
+    # stretches bridged, as the averages are: one corrupt sample (3e38) flattens the whole
+    # record's spectrum and no mesh line would stand out.
     mesh = mesh_phase_angle(
-        {name: scan.samples for name, scan in scans.items()},
+        {name: repair_spans(scan.samples, spans) if (spans := scan.defects.spans()).size else scan.samples
+         for name, scan in scans.items()},
         sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
         nominal_pinion_rpm=rig.nominal_pinion_rpm,
     )

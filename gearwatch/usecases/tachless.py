@@ -34,6 +34,8 @@ import numpy as np
 from dsp.tach import TachAnalysis, TachometerError, analyze_tachometer
 from dsp.tachless import (
     TachlessError,
+    comb_shaft_cycles,
+    dechirped_prominence_db,
     estimate_pair_speed,
     line_prominence,
     tachless_shaft_angle,
@@ -134,6 +136,24 @@ def _best_line(
     return best[1], best[2]
 
 
+def _tracked_ranking(
+    x: np.ndarray, sample_rate_hz: float, pinion_teeth: int, shaft_hz: float, search: float
+) -> tuple[list[int], np.ndarray | None]:
+    """The speed tracked on the mesh comb (:func:`dsp.tachless.comb_shaft_cycles`), and the mesh
+    harmonics below 0.45 fs ranked by how far each stands out along it."""
+    try:
+        shaft_cycles = comb_shaft_cycles(x, sample_rate_hz, pinion_teeth, shaft_hz, search_fraction=search)
+    except TachlessError:
+        return [], None
+    standing: dict[int, float] = {}
+    duration_s = x.size / sample_rate_hz
+    for h in range(1, MAX_HARMONIC + 1):
+        if h * pinion_teeth * shaft_cycles[-1] / duration_s >= 0.45 * sample_rate_hz:
+            break
+        standing[h] = dechirped_prominence_db(x, h * pinion_teeth * shaft_cycles)
+    return sorted(standing, key=lambda h: standing[h], reverse=True), shaft_cycles
+
+
 def mesh_phase_angle(
     signals: Mapping[str, np.ndarray],
     sample_rate_hz: float,
@@ -147,7 +167,11 @@ def mesh_phase_angle(
 
     Every accelerometer channel and mesh harmonic 1…:data:`MAX_HARMONIC` with a line is tried
     (:func:`dsp.tachless.tachless_shaft_angle`); the pulses with the smallest jitter
-    (:func:`_pulse_jitter_rev`) win and go through the tach checks of
+    (:func:`_pulse_jitter_rev`) win. When none works (a speed drifting within the record smears
+    the lines and moves them across each other's search windows), a second pass tracks the
+    speed on the whole mesh comb and follows each line along it (``follow_drift``; harmonics
+    ranked by how far they stand out there; the highest harmonic that works wins, see below).
+    The winner goes through the tach checks of
     :func:`dsp.tach.analyze_tachometer` (revolutions, speed range, speed variation) with
     ``params``' limits. Returns a one-line reason (the first refusal of each channel) when
     nothing works.
@@ -155,35 +179,53 @@ def mesh_phase_angle(
     bandwidth = min(MAX_BANDWIDTH_ORDERS, 0.75 * min(1.0, pinion_teeth / gear_teeth))
     refusals: list[str] = []
     best: tuple[float, Any, str] | None = None
+    followed_drift = False
+    search = SPEED_HINT_FRACTION if nominal_pinion_rpm is not None else SPECTRUM_SEARCH_FRACTION
+    lines: dict[str, tuple[np.ndarray, float, list[int]]] = {}
     for name, samples in signals.items():
         x = np.asarray(samples, dtype=np.float64)
         try:
             candidates = _pinion_speed_candidates(
                 x, sample_rate_hz, pinion_teeth, gear_teeth, nominal_pinion_rpm
             )
-            search = SPEED_HINT_FRACTION if nominal_pinion_rpm is not None else SPECTRUM_SEARCH_FRACTION
             shaft_hz, harmonics = _best_line(x, sample_rate_hz, pinion_teeth, candidates, search)
         except TachlessError as error:
             refusals.append(f"{name}: {error}")
             continue
-        first_refusal = ""
-        for harmonic in harmonics[:HARMONICS_TRIED]:
-            try:
-                estimate = tachless_shaft_angle(
-                    x, sample_rate_hz, pinion_teeth, approx_shaft_hz=shaft_hz, harmonic=harmonic,
-                    bandwidth_orders=bandwidth, search_fraction=search, track_speed=True,
-                )
-            except TachlessError as error:
-                first_refusal = first_refusal or str(error)
-                continue
-            jitter = _pulse_jitter_rev(estimate.pulse_times_s)
-            if best is None or jitter < best[0]:
-                best = (jitter, estimate, name)
-        if first_refusal and (best is None or best[2] != name):
-            refusals.append(f"{name}: {first_refusal}")
+        lines[name] = (x, shaft_hz, harmonics)
+    for follow_drift in (False, True):
+        for name, (x, shaft_hz, harmonics) in lines.items():
+            shaft_cycles = None
+            if follow_drift:
+                harmonics, shaft_cycles = _tracked_ranking(x, sample_rate_hz, pinion_teeth, shaft_hz, search)
+            first_refusal = ""
+            for harmonic in harmonics[:HARMONICS_TRIED]:
+                try:
+                    estimate = tachless_shaft_angle(
+                        x, sample_rate_hz, pinion_teeth, approx_shaft_hz=shaft_hz, harmonic=harmonic,
+                        bandwidth_orders=bandwidth, search_fraction=search, track_speed=True,
+                        follow_drift=follow_drift, shaft_cycles=shaft_cycles,
+                    )
+                except TachlessError as error:
+                    first_refusal = first_refusal or str(error)
+                    continue
+                jitter = _pulse_jitter_rev(estimate.pulse_times_s)
+                # Along a drift, the highest harmonic that works: as the mesh frequency sweeps,
+                # the transfer path's phase at it turns, and the angle read from harmonic h
+                # wanders by that phase / h (measured: 0.4 of a tooth within a 4-s record on
+                # harmonic 1 against 0.1 on harmonic 5 of a ±20 % swing).
+                rank = -float(estimate.harmonic) if follow_drift else jitter
+                if best is None or rank < best[0]:
+                    best = (rank, estimate, name)
+            if first_refusal and (best is None or best[2] != name):
+                refusals.append(f"{name}{' (along the drift)' if follow_drift else ''}: {first_refusal}")
+        if best is not None:
+            followed_drift = follow_drift
+            break  # lines that stand out in the whole record are preferred: steadier phase
     if best is None:
         return "; ".join(refusals) or "no accelerometer signal"
-    jitter, estimate, name = best
+    _rank, estimate, name = best
+    jitter = _pulse_jitter_rev(estimate.pulse_times_s)
     try:
         tach = analyze_tachometer(
             estimate.pulse_times_s, 1,
@@ -199,6 +241,7 @@ def mesh_phase_angle(
         "harmonic": int(estimate.harmonic),
         "mesh_line_hz": float(estimate.mesh_line_hz),
         "line_prominence_db": float(estimate.line_prominence_db),
+        "line_followed_along_drift": followed_drift,
         "min_envelope_ratio": float(estimate.min_envelope_ratio),
         "pulse_jitter_rev": float(jitter),
         "speed_variation": float(estimate.speed_variation),

@@ -66,12 +66,50 @@ def test_a_tachless_record_gets_its_angle_from_the_mesh_phase_and_says_so() -> N
     assert out["tooth_frame"]["kind"] == "own" and out["quality"]["angle_source"] == "mesh_phase"
 
 
+def test_a_corrupt_sample_does_not_cost_a_tachless_record_its_angle() -> None:
+    # One float32-fitting 3e38 sample flattens the whole record's spectrum: the mesh phase is
+    # read with the defect bridged, as the averages are, and the repair is counted.
+    data = fx.record(1)["acc"].copy()
+    data[data.size // 3] = 3.0e38
+    analysis = analyze_record(RecordData({"acc": data}, fx.FS), _campaign(), input_sha256="g")
+    assert analysis.quality.angle_source == "mesh_phase", analysis.quality.per_tooth
+    assert analysis.quality.glitch_samples == 1
+    assert abs(analysis.speed_rpm - fx.RPM) < 0.03 * fx.RPM
+
+
+def test_a_speed_swinging_by_a_third_within_the_record_is_followed_without_a_tach() -> None:
+    # The independent generator's speed shape (a ramp plus a slow swell), ±20 %: each mesh
+    # harmonic sweeps across its neighbours' search windows and smears over hundreds of bins.
+    # The speed tracked on the mesh comb gives pulses at one shaft angle, as the tach's.
+    from dsp.tach import pulse_times_from_waveform
+    from gearwatch.usecases.tachless import mesh_phase_angle
+    from physics.independent import generate_record, random_model
+
+    model = random_model(7, pinion_teeth=23, gear_teeth=61, noise_to_signal=0.5,
+                         speed_drift_fraction=0.2, seconds=8.0, dynamics="linear")
+    rec = generate_record(model, seed=7)
+    angle = mesh_phase_angle({"acc": np.asarray(rec.channels["acc"], dtype=float)}, rec.sample_rate_hz,
+                             23, 61, AnalysisParameters(), nominal_pinion_rpm=model.operating.speed_rpm)
+    assert not isinstance(angle, str), angle
+    assert angle.summary["line_followed_along_drift"] is True
+    assert angle.tach.speed_variation > 0.3  # a third of the speed, and not refused for it
+    true = pulse_times_from_waveform(np.asarray(rec.channels["tach"], dtype=float), rec.sample_rate_hz)
+    revs = np.interp(angle.tach.pulse_times_s, true, np.arange(true.size))
+    inside = (angle.tach.pulse_times_s > true[0]) & (angle.tach.pulse_times_s < true[-1])
+    phase = revs[inside] - np.round(revs[inside] - revs[inside][0])  # the shaft angle of each pulse
+    assert np.ptp(np.diff(np.round(revs[inside]))) == 0  # one pulse per revolution, none missed
+    assert float(np.max(np.abs(phase - np.median(phase)))) < 0.25 / 23  # within a quarter pitch
+
+
 def test_without_an_angle_the_raw_metrics_are_kept_with_the_reason() -> None:
     noise = np.random.default_rng(0).standard_normal(int(2 * fx.FS))
     analysis = analyze_record(RecordData({"acc": noise}, fx.FS), _campaign(), input_sha256="b")
     assert analysis.quality.angle_source == "none"
     reason = analysis.quality.per_tooth
     assert "manifest has no [tachometer]" in reason and "mesh line" in reason  # dsp.tachless's words
+    corrupt = noise.copy()
+    corrupt[100] = np.nan  # counted even when no average uses the repair
+    assert analyze_record(RecordData({"acc": corrupt}, fx.FS), _campaign(), input_sha256="c").quality.glitch_samples == 1
     channel = analysis.channels[0]
     assert not channel.teeth and channel.tooth_frame["kind"] == "none"
     assert channel.metrics["raw_rms"] == pytest.approx(float(np.std(noise)), rel=1e-6)
