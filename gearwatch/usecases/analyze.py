@@ -61,7 +61,7 @@ from gearwatch.usecases.angle_averages import (
     angle_averages,
     gear_revolutions_from_pinion_grid,
 )
-from gearwatch.usecases.shaft_angle import record_shaft_angle
+from gearwatch.usecases.shaft_angle import ShaftAngle, record_shaft_angle
 from gearwatch.usecases.signal_checks import (
     CLIPPING_MIN_RUN,
     MAX_ABS_SAMPLE,
@@ -201,32 +201,20 @@ def analyze_record(
     if isinstance(shaft, str):
         return _raw_metrics_only(shaft, scans, campaign, params, input_sha256)
     tach, pinion_per_tach_rev = shaft.tach, shaft.pinion_per_tach_rev
-    channels = [
-        _analyze_channel(
-            name=channel.name,
-            signal=scans[channel.name],
-            sample_rate_hz=sample_rate_hz,
-            tach=tach,
-            campaign=campaign,
-            params=params,
-            has_teeth=has_teeth,
-            pinion_per_tach_rev=pinion_per_tach_rev,
-            baselines=baselines.get(channel.name, Baselines()),
-            block_samples=block_samples,
-            tach_on_pinion=shaft.tach_on_pinion,
-            frame_placement=(
-                None if shaft.source == "tachometer"
-                else _FramePlacement(
-                    reference=None if tooth_frames is None else tooth_frames.get(channel.name),
-                    campaign_mode=tooth_frames is not None,
-                    record_sha256=input_sha256,
-                    refusal=(NO_HINT_REFUSAL if (shaft.tachless or {}).get("speed_from") == "spectrum"
-                             else ""),
-                )
-            ),
+    try:
+        channels = _analyzed_channels(
+            scans, sample_rate_hz, shaft, campaign, params, has_teeth, baselines, block_samples,
+            tooth_frames, input_sha256,
         )
-        for channel in accelerometers
-    ]
+    except RecordRejected as error:
+        if shaft.source == "tachometer":
+            raise
+        # Without a tach the record keeps its whole-record metrics (trends go on) when the
+        # mesh-phase angle leaves too little for the averages (e.g. revolutions rejected as
+        # outliers on a short record whose speed swings): the reason says so.
+        return _raw_metrics_only(
+            f"mesh-phase angle: {' '.join(str(error).split())}", scans, campaign, params, input_sha256
+        )
     pinion_rpm = tach.mean_rpm * pinion_per_tach_rev
     quality = Quality(
         tach_repairs=[TachRepairNote(kind=r.kind, time_s=float(r.time_s)) for r in tach.repairs],
@@ -289,6 +277,49 @@ def _with_channel_quality(quality: Quality, channels: list[ChannelAnalysis]) -> 
         dropout_samples=sum(q.dropout_samples for q in qualities),
         clipped_samples=sum(q.clipped_samples for q in qualities),
     )
+
+
+def _analyzed_channels(
+    scans: Mapping[str, ScannedSignal],
+    sample_rate_hz: float,
+    shaft: ShaftAngle,
+    campaign: Campaign,
+    params: AnalysisParameters,
+    has_teeth: bool,
+    baselines: Mapping[str, Baselines],
+    block_samples: int,
+    tooth_frames: Mapping[str, ToothFrameReference] | None,
+    input_sha256: str,
+) -> list[ChannelAnalysis]:
+    """Every accelerometer channel through the angle-domain chain (:func:`_analyze_channel`)."""
+    tach, pinion_per_tach_rev = shaft.tach, shaft.pinion_per_tach_rev
+    accelerometers = campaign.accelerometer_channels
+    return [
+        _analyze_channel(
+            name=channel.name,
+            signal=scans[channel.name],
+            sample_rate_hz=sample_rate_hz,
+            tach=tach,
+            campaign=campaign,
+            params=params,
+            has_teeth=has_teeth,
+            pinion_per_tach_rev=pinion_per_tach_rev,
+            baselines=baselines.get(channel.name, Baselines()),
+            block_samples=block_samples,
+            tach_on_pinion=shaft.tach_on_pinion,
+            frame_placement=(
+                None if shaft.source == "tachometer"
+                else _FramePlacement(
+                    reference=None if tooth_frames is None else tooth_frames.get(channel.name),
+                    campaign_mode=tooth_frames is not None,
+                    record_sha256=input_sha256,
+                    refusal=(NO_HINT_REFUSAL if (shaft.tachless or {}).get("speed_from") == "spectrum"
+                             else ""),
+                )
+            ),
+        )
+        for channel in accelerometers
+    ]
 
 
 def _raw_metrics_only(

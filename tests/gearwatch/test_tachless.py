@@ -101,6 +101,20 @@ def test_a_speed_swinging_by_a_third_within_the_record_is_followed_without_a_tac
     assert float(np.max(np.abs(phase - np.median(phase)))) < 0.25 / 23  # within a quarter pitch
 
 
+def test_too_few_clean_revolutions_under_a_mesh_phase_angle_keep_the_raw_metrics() -> None:
+    # Revolutions touched by defects are left out of the averages; when too few remain, a
+    # tach record is rejected, a tach-less one keeps its whole-record metrics, with the reason.
+    data = fx.record(1)["acc"].copy()
+    whole = analyze_record(RecordData({"acc": data}, fx.FS), _campaign(), input_sha256="w")
+    params = AnalysisParameters(min_revolutions=whole.revolutions - 1)
+    for at in (0.2, 0.5, 0.8):  # three corrupt samples in three revolutions
+        data[int(at * data.size)] = 3.0e38
+    analysis = analyze_record(RecordData({"acc": data}, fx.FS), _campaign(), params, input_sha256="v")
+    assert analysis.quality.angle_source == "none"
+    assert analysis.quality.per_tooth.startswith("mesh-phase angle: only"), analysis.quality.per_tooth
+    assert analysis.channels[0].metrics["raw_rms"] > 0 and not analysis.channels[0].teeth
+
+
 def test_without_an_angle_the_raw_metrics_are_kept_with_the_reason() -> None:
     noise = np.random.default_rng(0).standard_normal(int(2 * fx.FS))
     analysis = analyze_record(RecordData({"acc": noise}, fx.FS), _campaign(), input_sha256="b")
