@@ -386,6 +386,10 @@ def _power_centroid_hz(x: FloatArray, sample_rate_hz: float, centre_hz: float, h
 MAX_COMB_HARMONICS = 8
 """Mesh harmonics summed by :func:`comb_shaft_cycles` (those below 0.45 fs)."""
 
+MAX_COMB_FRAME_S = 4.0
+"""Longest default frame of :func:`comb_shaft_cycles`: its candidate speeds are spaced by half a
+bin at the highest harmonic, so their number grows with the frame."""
+
 
 def comb_shaft_cycles(
     signal: ArrayLike,
@@ -398,8 +402,8 @@ def comb_shaft_cycles(
 ) -> FloatArray:
     """Shaft revolutions at every sample, from a speed tracked frame by frame on the mesh comb.
 
-    In each Hann frame (half-overlapping; ``window_s`` defaults to 1/24 of the record, at least
-    60 mesh periods) every candidate shaft speed within ±``search_fraction`` of
+    In each Hann frame (half-overlapping; ``window_s`` defaults to 1/24 of the record, at most
+    :data:`MAX_COMB_FRAME_S`, at least 60 mesh periods) every candidate shaft speed within ±``search_fraction`` of
     ``approx_shaft_hz`` scores the summed log-prominence (:func:`dsp.meshspectrum.line_prominence`'s
     measure, negative parts and above 40 dB cut) of its mesh harmonics ``h × mesh_order``,
     ``h`` = 1…:data:`MAX_COMB_HARMONICS` below 0.45 fs; the best speed of each frame goes
@@ -432,8 +436,9 @@ def comb_shaft_cycles(
     mesh_hz = mesh_order * approx_shaft_hz
     if window_s is None:
         # Short frames: a speed swinging by tens of per cent moves within a long frame, and the
-        # band that follows the track is only ±0.3 shaft orders wide at the harmonic.
-        window_s = max(duration_s / 24.0, 60.0 / mesh_hz)
+        # band that follows the track is only ±0.3 shaft orders wide at the harmonic. At most
+        # MAX_COMB_FRAME_S on a long record (the candidate grid grows with the frame).
+        window_s = max(min(duration_s / 24.0, MAX_COMB_FRAME_S), 60.0 / mesh_hz)
     frame = min(x.size, max(64, int(window_s * sample_rate_hz)))
     hop = max(1, frame // 2)
     starts = np.arange(0, x.size - frame + 1, hop)
