@@ -489,8 +489,10 @@ def _refined_ridge(x: FloatArray, sample_rate_hz: float, ridge_cycles: FloatArra
     residual = np.unwrap(np.angle(wide)) / (2.0 * np.pi)
     n = max(1, min(residual.size // 4, int(REFINE_SMOOTH_S * sample_rate_hz)))
     padded = np.pad(residual, (n, n), mode="reflect", reflect_type="odd")
-    kernel = np.ones(n) / n
-    smooth = np.convolve(padded, kernel, mode="same")[n : n + residual.size]
+    # moving average by a running sum (a convolution with n taps cost 2.7 s on a 60-s record)
+    running = np.concatenate(([0.0], np.cumsum(padded)))
+    start = np.arange(residual.size) + n - n // 2
+    smooth = (running[start + n] - running[start]) / n
     return np.asarray(ridge_cycles + smooth, dtype=np.float64)
 
 
