@@ -245,31 +245,22 @@ def tachless_shaft_angle(
                 f"{line_hz:.6g} Hz on average): it stands {prominence_db:.1f} dB above the floor, "
                 f"{MIN_LINE_PROMINENCE_DB:.0f} dB needed"
             )
-        shaft_hz = line_hz / cycles_per_rev
-        band = _analytic_band(
-            x * np.exp(-2j * np.pi * ridge_cycles), sample_rate_hz, 0.0, bandwidth_orders * shaft_hz,
-            two_sided=True,
-        )
-    elif track_speed:
+    else:
         line_hz, prominence_db = mesh_line_hz(
             x, sample_rate_hz, mesh_order, approx_shaft_hz, harmonic=harmonic, search_fraction=search_fraction
         )
         # Centre the band on the power centroid around the peak: a speed fluctuation spreads
         # the line into FM sidebands, and the tallest of them need not be the carrier.
         line_hz = _power_centroid_hz(x, sample_rate_hz, line_hz, bandwidth_orders * line_hz / cycles_per_rev)
-        shaft_hz = line_hz / cycles_per_rev
-        ridge_cycles = mesh_ridge_cycles(x, sample_rate_hz, line_hz, search_fraction=search_fraction)
+        ridge_cycles = (mesh_ridge_cycles(x, sample_rate_hz, line_hz, search_fraction=search_fraction)
+                        if track_speed else np.zeros(x.size))
+    shaft_hz = line_hz / cycles_per_rev
+    if track_speed:
         band = _analytic_band(
             x * np.exp(-2j * np.pi * ridge_cycles), sample_rate_hz, 0.0, bandwidth_orders * shaft_hz,
             two_sided=True,
         )
     else:
-        line_hz, prominence_db = mesh_line_hz(
-            x, sample_rate_hz, mesh_order, approx_shaft_hz, harmonic=harmonic, search_fraction=search_fraction
-        )
-        line_hz = _power_centroid_hz(x, sample_rate_hz, line_hz, bandwidth_orders * line_hz / cycles_per_rev)
-        shaft_hz = line_hz / cycles_per_rev
-        ridge_cycles = np.zeros(x.size)
         band = _analytic_band(x, sample_rate_hz, line_hz, bandwidth_orders * shaft_hz)
 
     # Keep the span unaffected by the circular filter's wrap-around.
@@ -404,8 +395,8 @@ def comb_shaft_cycles(
 
     In each Hann frame (half-overlapping; ``window_s`` defaults to 1/24 of the record, at most
     :data:`MAX_COMB_FRAME_S`, at least 60 mesh periods) every candidate shaft speed within ±``search_fraction`` of
-    ``approx_shaft_hz`` scores the summed log-prominence (:func:`dsp.meshspectrum.line_prominence`'s
-    measure, negative parts and above 40 dB cut) of its mesh harmonics ``h × mesh_order``,
+    ``approx_shaft_hz`` scores the summed log-prominence (:func:`dsp.meshspectrum.line_prominence`
+    of the frame, negative parts and above 40 dB cut) of its mesh harmonics ``h × mesh_order``,
     ``h`` = 1…:data:`MAX_COMB_HARMONICS` below 0.45 fs; the best speed of each frame goes
     through a robust polynomial fit (:func:`_robust_ridge`: frames far off it dropped), and the
     kept frames are joined by a monotone cubic, integrated from 0. One harmonic drifting by
@@ -427,9 +418,7 @@ def comb_shaft_cycles(
     >>> bool(error_hz.max() < 0.1)
     True
     """
-    import scipy.fft  # only without a tachometer: not on the tach path's imports
-    from scipy import ndimage
-    from scipy.interpolate import PchipInterpolator
+    from scipy.interpolate import PchipInterpolator  # only without a tachometer
 
     x = _checked_signal(signal, sample_rate_hz)
     duration_s = x.size / sample_rate_hz
@@ -439,9 +428,7 @@ def comb_shaft_cycles(
         # band that follows the track is only ±0.3 shaft orders wide at the harmonic. At most
         # MAX_COMB_FRAME_S on a long record (the candidate grid grows with the frame).
         window_s = max(min(duration_s / 24.0, MAX_COMB_FRAME_S), 60.0 / mesh_hz)
-    frame = min(x.size, max(64, int(window_s * sample_rate_hz)))
-    hop = max(1, frame // 2)
-    starts = np.arange(0, x.size - frame + 1, hop)
+    frame, starts = _half_overlapping_frames(x.size, sample_rate_hz, window_s)
     bin_hz = sample_rate_hz / frame
     harmonics = np.arange(1, MAX_COMB_HARMONICS + 1)
     harmonics = harmonics[harmonics * mesh_hz * (1 + search_fraction) < 0.45 * sample_rate_hz]
@@ -450,13 +437,9 @@ def comb_shaft_cycles(
     step = bin_hz / (2.0 * harmonics[-1] * mesh_order)
     speeds = np.arange(approx_shaft_hz * (1 - search_fraction), approx_shaft_hz * (1 + search_fraction), step)
     bins = np.rint(np.outer(speeds, harmonics * mesh_order) / bin_hz).astype(np.int64)
-    window = np.hanning(frame)
-    half = max(50, int(0.005 * (frame // 2 + 1)))
     best, centres = [], []
     for start in starts:
-        log_amplitude = np.log(np.abs(scipy.fft.rfft(x[start : start + frame] * window)) + 1e-300)
-        floor = ndimage.median_filter(log_amplitude, size=2 * half + 1, mode="nearest")
-        prominence = np.clip(log_amplitude - floor, 0.0, COMB_CAP_NP)
+        prominence = np.clip(line_prominence(x[start : start + frame], sample_rate_hz)[0], 0.0, COMB_CAP_NP)
         best.append(float(speeds[int(np.argmax(prominence[bins].sum(axis=1)))]))
         centres.append((start + frame / 2) / sample_rate_hz)
     t = np.arange(x.size) / sample_rate_hz
@@ -560,9 +543,7 @@ def mesh_ridge_cycles(
     duration_s = x.size / sample_rate_hz
     if window_s is None:
         window_s = max(duration_s / 8.0, 60.0 / line_hz)
-    frame = min(x.size, max(64, int(window_s * sample_rate_hz)))
-    hop = max(1, frame // 2)
-    starts = np.arange(0, x.size - frame + 1, hop)
+    frame, starts = _half_overlapping_frames(x.size, sample_rate_hz, window_s)
     window = np.hanning(frame)
     freq = np.fft.rfftfreq(frame, d=1.0 / sample_rate_hz)
     lo = max(1, int(np.searchsorted(freq, line_hz * (1 - search_fraction))))
@@ -584,6 +565,13 @@ def mesh_ridge_cycles(
     degree = min(5, len(peaks) // 3)
     fit = np.polynomial.Polynomial.fit(np.asarray(centres), np.asarray(peaks), degree)
     return np.asarray(fit.integ()(t) - fit.integ()(0.0), dtype=np.float64)
+
+
+def _half_overlapping_frames(n_samples: int, sample_rate_hz: float, window_s: float) -> tuple[int, NDArray[np.int64]]:
+    """Frame length (samples, at least 64, at most the record) and the starts of half-overlapping
+    frames of about ``window_s``."""
+    frame = min(n_samples, max(64, int(window_s * sample_rate_hz)))
+    return frame, np.arange(0, n_samples - frame + 1, max(1, frame // 2))
 
 
 def _robust_ridge(centres: FloatArray, peaks: FloatArray) -> tuple[np.polynomial.Polynomial, NDArray[np.bool_]]:

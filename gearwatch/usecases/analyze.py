@@ -342,6 +342,8 @@ def _raw_metrics_only(
         )
         for name, scan in scans.items()
     ]
+    per_channel = [scan.defects.counts() for scan in scans.values()]
+    repairs = {kind: sum(counts[kind] for counts in per_channel) for kind in per_channel[0]}
     quality = Quality(
         tach_repairs=[], speed_variation=0.0, speed_min_rpm=0.0, speed_max_rpm=0.0,
         clipped_fraction=max(scan.clipped_fraction for scan in scans.values()),
@@ -350,9 +352,9 @@ def _raw_metrics_only(
         per_tooth=reason,
         tooth_frames={c.channel: c.tooth_frame for c in channels},
         # the repairs are counted although no average uses them: the record's data quality
-        glitch_samples=sum(scan.defects.counts()["glitch_samples"] for scan in scans.values()),
-        dropout_samples=sum(scan.defects.counts()["dropout_samples"] for scan in scans.values()),
-        clipped_samples=sum(scan.defects.counts()["clipped_samples"] for scan in scans.values()),
+        glitch_samples=repairs["glitch_samples"],
+        dropout_samples=repairs["dropout_samples"],
+        clipped_samples=repairs["clipped_samples"],
     )
     return RecordAnalysis(
         channels=channels, quality=quality,
