@@ -33,8 +33,12 @@ import numpy as np
 
 from dsp.tach import TachAnalysis, TachometerError, analyze_tachometer
 from dsp.tachless import (
+    MIN_LINE_PROMINENCE_DB,
+    NEIGHBOUR_FRACTION,
     TachlessError,
+    agreeing_harmonics,
     comb_shaft_cycles,
+    comb_speed_hz,
     dechirped_prominence_db,
     estimate_pair_speed,
     line_prominence,
@@ -114,26 +118,49 @@ def _pinion_speed_candidates(
                                 min_shaft_hz=10.0 / duration_s)]
 
 
+def _harmonic_window(harmonic: int, search: float) -> float:
+    """Relative half-width of the window for mesh ``harmonic`` around the comb's speed."""
+    return min(search, NEIGHBOUR_FRACTION / harmonic)
+
+
 def _best_line(
     x: np.ndarray, sample_rate_hz: float, pinion_teeth: int, candidates: list[float], search: float
-) -> tuple[float, list[int]]:
-    """The candidate speed whose mesh harmonics stand highest, and the harmonics by prominence."""
+) -> tuple[float, float, list[int]]:
+    """The candidate speed whose mesh harmonics stand highest; that speed refined on the whole
+    record's mesh comb (:func:`dsp.tachless.comb_speed_hz`); and the harmonics by prominence, each
+    looked for within :func:`_harmonic_window` of where the comb's speed puts it, without those
+    whose line disagrees with the others' speed (:func:`dsp.tachless.agreeing_harmonics`).
+
+    The drift pass starts again from the candidate: on a record whose speed swings, the whole
+    record's comb can settle anywhere in the ±``search`` window."""
     prominence, freq = line_prominence(x, sample_rate_hz)
     bin_hz = float(freq[1])
-    best: tuple[float, float, list[int]] = (-math.inf, candidates[0], [1])
-    for shaft_hz in candidates:
+    standing_np = MIN_LINE_PROMINENCE_DB / (20.0 / math.log(10.0))
+    best: tuple[float, float, float, list[int]] | None = None
+    for candidate_hz in candidates:
+        comb_hz = comb_speed_hz(prominence, freq, pinion_teeth, candidate_hz, search_fraction=search)
         heights: dict[int, float] = {}
+        peaks_hz: dict[int, float] = {}
         for h in range(1, MAX_HARMONIC + 1):
-            expected = h * pinion_teeth * shaft_hz
+            expected = h * pinion_teeth * comb_hz
             if expected >= 0.45 * sample_rate_hz:
                 break
-            lo = max(1, int(expected * (1 - search) / bin_hz))
-            hi = min(prominence.size - 1, math.ceil(expected * (1 + search) / bin_hz) + 1)
-            heights[h] = float(prominence[lo:hi].max()) if hi > lo else -math.inf
-        if heights and max(heights.values()) > best[0]:
+            window = _harmonic_window(h, search)
+            lo = max(1, int(expected * (1 - window) / bin_hz))
+            hi = min(prominence.size - 1, math.ceil(expected * (1 + window) / bin_hz) + 1)
+            if hi <= lo:
+                continue
+            peak = lo + int(np.argmax(prominence[lo:hi]))
+            heights[h], peaks_hz[h] = float(prominence[peak]), float(freq[peak])
+        standing = {h for h, height in heights.items() if height >= standing_np}
+        for h in standing - agreeing_harmonics(peaks_hz, standing):
+            del heights[h]
+        if heights and (best is None or max(heights.values()) > best[0]):
             ranked = sorted(heights, key=lambda h: heights[h], reverse=True)
-            best = (max(heights.values()), shaft_hz, ranked)
-    return best[1], best[2]
+            best = (max(heights.values()), candidate_hz, comb_hz, ranked)
+    if best is None:
+        raise TachlessError(f"no mesh harmonic below 0.45 fs at about {candidates[0]:.6g} Hz")
+    return best[1], best[2], best[3]
 
 
 def _tracked_ranking(
@@ -181,20 +208,21 @@ def mesh_phase_angle(
     best: tuple[float, Any, str] | None = None
     followed_drift = False
     search = SPEED_HINT_FRACTION if nominal_pinion_rpm is not None else SPECTRUM_SEARCH_FRACTION
-    lines: dict[str, tuple[np.ndarray, float, list[int]]] = {}
+    lines: dict[str, tuple[np.ndarray, float, float, list[int]]] = {}
     for name, samples in signals.items():
         x = np.asarray(samples, dtype=np.float64)
         try:
             candidates = _pinion_speed_candidates(
                 x, sample_rate_hz, pinion_teeth, gear_teeth, nominal_pinion_rpm
             )
-            shaft_hz, harmonics = _best_line(x, sample_rate_hz, pinion_teeth, candidates, search)
+            candidate_hz, comb_hz, harmonics = _best_line(x, sample_rate_hz, pinion_teeth, candidates, search)
         except TachlessError as error:
             refusals.append(f"{name}: {error}")
             continue
-        lines[name] = (x, shaft_hz, harmonics)
+        lines[name] = (x, candidate_hz, comb_hz, harmonics)
     for follow_drift in (False, True):
-        for name, (x, shaft_hz, harmonics) in lines.items():
+        for name, (x, candidate_hz, comb_hz, harmonics) in lines.items():
+            shaft_hz = candidate_hz if follow_drift else comb_hz
             shaft_cycles = None
             if follow_drift:
                 harmonics, shaft_cycles = _tracked_ranking(x, sample_rate_hz, pinion_teeth, shaft_hz, search)
@@ -203,7 +231,8 @@ def mesh_phase_angle(
                 try:
                     estimate = tachless_shaft_angle(
                         x, sample_rate_hz, pinion_teeth, approx_shaft_hz=shaft_hz, harmonic=harmonic,
-                        bandwidth_orders=bandwidth, search_fraction=search, track_speed=True,
+                        bandwidth_orders=bandwidth, track_speed=True,
+                        search_fraction=search if follow_drift else _harmonic_window(harmonic, search),
                         follow_drift=follow_drift, shaft_cycles=shaft_cycles,
                     )
                 except TachlessError as error:

@@ -101,6 +101,27 @@ def test_a_speed_swinging_by_a_third_within_the_record_is_followed_without_a_tac
     assert float(np.max(np.abs(phase - np.median(phase)))) < 0.25 / 23  # within a quarter pitch
 
 
+def test_the_angle_comes_from_a_mesh_harmonic_not_from_a_tall_tone_near_one() -> None:
+    # On the real SpectraQuest records a fixed 5957-Hz tone, 37 dB high, stands 3.8 % above
+    # harmonic 6 of the 32-tooth wheel. A line within ±20 % of h × the speed hint was taken as
+    # harmonic h: the tone won (a pure tone has no jitter) and the angle ran 3.8 % fast, so those
+    # records matched no other day. The comb's speed now puts each harmonic within 2 %.
+    from gearwatch.usecases.tachless import mesh_phase_angle
+
+    fs, teeth, shaft_hz = 12_800.0, 24, 16.0
+    t = np.arange(int(6 * fs)) / fs
+    revs = shaft_hz * t
+    x = sum(0.3 * np.cos(2 * np.pi * h * teeth * revs + h) for h in (1, 2, 3, 4))
+    x = x + 10.0 * np.cos(2 * np.pi * 1.038 * 6 * teeth * shaft_hz * t)
+    x = x + 0.2 * np.random.default_rng(5).standard_normal(t.size)
+    angle = mesh_phase_angle({"acc": x}, fs, teeth, 48, AnalysisParameters(), nominal_pinion_rpm=60 * shaft_hz)
+    assert not isinstance(angle, str), angle
+    assert angle.summary["harmonic"] in (1, 2, 3, 4)
+    assert abs(angle.tach.mean_rpm / (60 * shaft_hz) - 1) < 1e-3, angle.summary
+    pulses_in_revs = shaft_hz * angle.tach.pulse_times_s
+    assert np.ptp(pulses_in_revs - np.round(pulses_in_revs)) < 0.25 / teeth  # one shaft angle
+
+
 def test_too_few_clean_revolutions_under_a_mesh_phase_angle_keep_the_raw_metrics() -> None:
     # Revolutions touched by defects are left out of the averages; when too few remain, a
     # tach record is rejected, a tach-less one keeps its whole-record metrics, with the reason.
