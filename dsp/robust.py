@@ -137,7 +137,8 @@ class SampleDefects:
 
 def _sampled(signal: ArrayLike) -> list[FloatArray]:
     """The signal, or for a long one 64 blocks of 1024 consecutive samples at random starts."""
-    x = np.asarray(signal).ravel()
+    # reshape, not ravel: a channel of an interleaved file is a strided view, which ravel copies whole
+    x = np.asarray(signal).reshape(-1)
     if x.size <= QUANTILE_SAMPLES:
         return [np.asarray(x, dtype=np.float64)]
     block = QUANTILE_SAMPLES // 64
