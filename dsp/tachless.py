@@ -459,6 +459,9 @@ MAX_COMB_CANDIDATES = 4001
 """Candidate speeds of :func:`comb_speed_hz` at most (each harmonic's prominence is max-pooled
 over the grid step, so a coarser grid misses no line)."""
 
+COMB_TIE_NP = 0.1
+"""Comb scores (capped, in nepers) this close to the best are a tie, broken by the uncapped sum."""
+
 NEIGHBOUR_FRACTION = 0.4
 """Around the comb's speed, mesh harmonic ``h`` is looked for within ``±NEIGHBOUR_FRACTION / h``
 (relative): never nearer its neighbours ``h ± 1`` than 60 % of the way."""
@@ -506,7 +509,8 @@ def comb_speed_hz(
     """
     from scipy import ndimage  # only without a tachometer
 
-    p = np.clip(np.asarray(prominence, dtype=np.float64), 0.0, COMB_CAP_NP)
+    uncapped = np.maximum(np.asarray(prominence, dtype=np.float64), 0.0)
+    p = np.minimum(uncapped, COMB_CAP_NP)
     freq = np.asarray(frequency_hz, dtype=np.float64)
     bin_hz = float(freq[1] - freq[0])
     mesh_hz = mesh_order * approx_shaft_hz
@@ -521,12 +525,18 @@ def comb_speed_hz(
     speeds = np.linspace(approx_shaft_hz * (1 - search_fraction), approx_shaft_hz * (1 + search_fraction), count)
     step = speeds[1] - speeds[0] if count > 1 else 0.0
     score = np.zeros(count)
+    height = np.zeros(count)
     for h in harmonics:
         reach = math.ceil(h * mesh_order * step / (2.0 * bin_hz))
-        pooled = ndimage.maximum_filter1d(p, 2 * reach + 1, mode="nearest") if reach > 0 else p
         bins = np.clip(np.rint(speeds * h * mesh_order / bin_hz).astype(np.int64), 0, p.size - 1)
-        score += pooled[bins]
-    return float(speeds[int(np.argmax(score))])
+        for source, total in ((p, score), (uncapped, height)):
+            pooled = ndimage.maximum_filter1d(source, 2 * reach + 1, mode="nearest") if reach > 0 else source
+            total += pooled[bins]
+    # Every candidate whose harmonics all hit lines at the cap scores the same: in a record with
+    # a line at every shaft order (a spall's impulse train, little noise), speed × k / teeth
+    # does. Among those, the mesh harmonics themselves are the tallest lines.
+    tied = score >= float(score.max()) - COMB_TIE_NP
+    return float(speeds[int(np.argmax(np.where(tied, height, -np.inf)))])
 
 
 def agreeing_harmonics(line_hz: dict[int, float], standing: set[int]) -> set[int]:

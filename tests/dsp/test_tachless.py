@@ -177,3 +177,19 @@ def test_noise_followed_along_a_drift_is_still_refused() -> None:
         tachless_shaft_angle(
             x, fs, TEETH, approx_shaft_hz=16.6, search_fraction=0.2, track_speed=True, follow_drift=True
         )
+
+
+def test_the_comb_finds_the_mesh_speed_when_every_shaft_order_is_a_line() -> None:
+    # A clean record with a spall's impulse train: a line at every shaft order, all far above the
+    # comb's 40-dB cap, so speed × k / teeth (k = 16 … 24 within ±20 %) scores as high as the
+    # speed; the mesh harmonics are the tallest lines, and they decide.
+    from dsp.meshspectrum import line_prominence
+    from dsp.tachless import comb_speed_hz
+
+    fs, teeth, shaft_hz = 8000.0, 20, 16.0
+    t = np.arange(int(8 * fs)) / fs
+    revs = shaft_hz * t
+    x = sum(np.cos(2 * np.pi * h * teeth * revs) for h in (1, 2, 3))
+    x = x + 0.05 * np.exp(-((revs % 1.0) * 200.0) ** 2)  # one short bump per revolution
+    prominence, freq = line_prominence(x, fs)
+    assert abs(comb_speed_hz(prominence, freq, teeth, 1.1 * shaft_hz) / shaft_hz - 1) < 1e-3
