@@ -48,6 +48,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from detection.alarms import RuleSettings, TrackState, step
+from dsp.tach import pulse_times_from_waveform
 from dsp.teeth import tooth_at_angle
 from gearwatch.floor.campaign import (
     Campaign,
@@ -203,6 +204,21 @@ def _first_alarm(day_teeth: list[dict[int, float] | None]) -> tuple[int | None, 
     return None, None
 
 
+def _campaign_frame_angle_rev(tach: np.ndarray, fs: float, analysis: RecordAnalysis,
+                              frame: dict[str, Any], samples_per_rev: int) -> float:
+    """The tach's pinion angle (revolutions, mod 1) at sample 0 of a tach-less day's
+    campaign-frame average: angle 0 of its own average is its first synthetic pulse
+    (``quality.tachless.first_pulse_s``), moved by the frame's ``pinion_delay_samples``.
+
+    A second truth beside the averages' best match: it does not depend on how alike the two
+    averages of a day look (a speed sweeping through the path's resonances, a fresh spall)."""
+    pulses = pulse_times_from_waveform(tach, fs)  # the bench's tach: once per pinion revolution
+    assert analysis.quality.tachless is not None
+    first = float(analysis.quality.tachless["first_pulse_s"])
+    own_angle = float(np.interp(first, pulses, np.arange(pulses.size, dtype=np.float64)))
+    return (own_angle - float(frame["pinion_delay_samples"]) / samples_per_rev) % 1.0
+
+
 def _delay_between(a: np.ndarray, b: np.ndarray) -> int:
     """Sample delay d maximising Σ a[n + d]·b[n] (a is b delayed by d)."""
     full = np.fft.irfft(np.fft.rfft(a) * np.conj(np.fft.rfft(b)), n=a.size)
@@ -226,6 +242,10 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
     alignment: list[str] = []
     margins: list[float] = []
     reference_delay: int | None = None
+    pulse_reference: float | None = None
+    by_pulses: list[str] = []
+    pulse_offsets: list[float] = []  # teeth, the campaign frame against the founding day's
+    angles: list[list[Any]] = []  # per tach-less day: harmonic, drift pass, speed variation
     spm = params.samples_per_mesh
     n = spec.pinion_teeth * spm
     reasons: list[str] = []
@@ -257,6 +277,9 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         )
         channel = tl.channels[0]
         frame = channel.tooth_frame
+        q = tl.quality.tachless or {}
+        angles.append([q.get("harmonic"), q.get("line_followed_along_drift"),
+                       None if not q else round(float(q["speed_variation"]), 4)])
         if not channel.teeth:
             tl_teeth.append(None)
             alignment.append("refused" if frame.get("kind") == "refused" else "no-angle")
@@ -265,6 +288,13 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
                 margins.append(frame["pinion"]["margin"])
             continue
         tl_teeth.append({t.tooth: t.mci_depth for t in channel.teeth})
+        angle = _campaign_frame_angle_rev(tach, fs, tl, frame, n)
+        if pulse_reference is None:
+            pulse_reference = angle
+        else:
+            off_teeth = ((angle - pulse_reference + 0.5) % 1.0 - 0.5) * spec.pinion_teeth
+            by_pulses.append("right" if abs(off_teeth) < 0.5 else "wrong")
+            pulse_offsets.append(round(off_teeth, 2))
         delay = _delay_between(channel.curves["pinion_average"].astype(np.float64),
                                tach_result.channels[0].curves["pinion_average"].astype(np.float64))
         if reference_delay is None:
@@ -287,7 +317,9 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
     return {
         "seed": spec.seed, "simulator": simulator, "teeth": [spec.pinion_teeth, spec.gear_teeth],
         "noise_ratio": round(spec.noise_ratio, 2), "spall_tooth": spec.spall_tooth,
-        "onset_day": spec.onset_day, "alignment": alignment, "margins": margins,
+        "onset_day": spec.onset_day, "alignment": alignment, "alignment_by_pulses": by_pulses,
+        "pulse_offsets_teeth": pulse_offsets, "angles": angles,
+        "margins": margins,
         "tach_first_alarm": [tach_day, tach_tooth], "tachless_first_alarm": [tl_day, tl_tooth],
         "reasons": [r for r in reasons if r],
     }
@@ -319,6 +351,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
                    if d >= r["onset_day"] and a not in ("reference", NO_TACH_TRUTH)]
     right, wrong = days.count("right"), days.count("wrong")
     refused, no_angle = days.count("refused"), days.count("no-angle")
+    by_pulses = [a for r in rows for a in r.get("alignment_by_pulses", [])]
     same_day = same_tooth = near_tooth = both_silent = 0
     for r in rows:
         (td, tt), (ld, lt) = r["tach_first_alarm"], r["tachless_first_alarm"]
@@ -340,6 +373,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "campaigns": len(rows), "days_scored": len(days), "right": right, "wrong": wrong,
         "refused": refused, "no_angle": no_angle,
+        "right_by_pulses": by_pulses.count("right"), "wrong_by_pulses": by_pulses.count("wrong"),
         "right_or_refused_pct": 100.0 * (right + refused + no_angle) / max(1, len(days)),
         "wrong_pct_of_aligned": 100.0 * wrong / aligned_days,
         "first_alarm_within_1_day_pct": 100.0 * same_day / count,
@@ -402,6 +436,8 @@ def main() -> int:
               f"{s['same_tooth_pct']:9.0f}% {s['tooth_within_1_pct']:7.0f}% {s['both_silent']:11d}")
     for name, block in report.items():
         s = block["summary"]
+        print(f"{name}: aligned days by the pulses' truth (the tach's angle at the campaign frame's "
+              f"sample 0): right {s['right_by_pulses']}, wrong {s['wrong_by_pulses']}")
         print(f"{name}: days with the spall: {s['spalled_days']}, right {s['spalled_right']}, "
               f"refused/no angle {s['spalled_refused']}, wrong {s['spalled_wrong']}; "
               f"refusals by reason: {s['reasons']}")

@@ -480,6 +480,9 @@ def _analyze_channel(
         tooth1_pitch_angle_deg, tooth_frame = placed.tooth1_pitch_angle_deg, placed.tooth_frame
         fingerprints = placed.fingerprints
         frame_delay = placed.pinion_delay_samples
+        if tooth_frame.get("kind") == "campaign":
+            # how the record's own average was moved into the campaign frame (samples of delay)
+            tooth_frame["pinion_delay_samples"] = round(float(frame_delay), 3)
         curves["pinion_average"] = average.astype(np.float32)
     regular = regular_signal(average, pinion_teeth, sidebands=params.difference_sidebands)
     residual = residual_signal(average, pinion_teeth)

@@ -276,6 +276,9 @@ def mesh_phase_angle(
         "speed_variation": float(estimate.speed_variation),
         "bandwidth_orders": float(bandwidth),
         "speed_from": "nominal_pinion_rpm" if nominal_pinion_rpm is not None else "spectrum",
+        # angle 0 of this record's own averages (before any tooth-frame shift), for an audit
+        # against a tach recorded alongside
+        "first_pulse_s": float(tach.pulse_times_s[0]),
     }
     return MeshPhaseAngle(tach=tach, summary=summary)
 

@@ -66,6 +66,31 @@ def test_a_tachless_record_gets_its_angle_from_the_mesh_phase_and_says_so() -> N
     assert out["tooth_frame"]["kind"] == "own" and out["quality"]["angle_source"] == "mesh_phase"
 
 
+def test_a_tach_recorded_alongside_finds_every_aligned_day_at_one_shaft_angle() -> None:
+    # quality.tachless.first_pulse_s (angle 0 of the record's own average) and the campaign
+    # frame's pinion_delay_samples let a tach recorded alongside audit the frame: sample 0 of
+    # every aligned day's campaign-frame average is at one pinion angle, whatever angle each
+    # record started at (benchmarks/bench_tachless.py scores the frame this way).
+    from dsp.tach import pulse_times_from_waveform
+    from gearwatch.usecases.tachless import fold_reference
+
+    reference = None
+    angles = []
+    for day in (1, 2, 3):
+        data = fx.record(day, start_rev=0.37 * day, tach="ok")
+        analysis = analyze_record(RecordData({"acc": data["acc"]}, fx.FS), _campaign(), input_sha256=f"d{day}",
+                                  tooth_frames={} if reference is None else {"acc": reference})
+        channel = analysis.channels[0]
+        assert channel.tooth_frame["kind"] == "campaign", channel.tooth_frame
+        assert analysis.quality.tachless is not None
+        pulses = pulse_times_from_waveform(data["tach"].astype(float), fx.FS)
+        own = float(np.interp(analysis.quality.tachless["first_pulse_s"], pulses, np.arange(pulses.size)))
+        angles.append((own - channel.tooth_frame["pinion_delay_samples"] / channel.samples_per_rev) % 1.0)
+        reference = fold_reference(reference, channel, f"d{day}") or reference
+    offsets_teeth = [((a - angles[0] + 0.5) % 1.0 - 0.5) * fx.PINION for a in angles[1:]]
+    assert max(abs(o) for o in offsets_teeth) < 0.25, offsets_teeth
+
+
 def test_a_corrupt_sample_does_not_cost_a_tachless_record_its_angle() -> None:
     # One float32-fitting 3e38 sample flattens the whole record's spectrum: the mesh phase is
     # read with the defect bridged, as the averages are, and the repair is counted.
