@@ -181,6 +181,29 @@ def _tracked_ranking(
     return sorted(standing, key=lambda h: standing[h], reverse=True), shaft_cycles
 
 
+STEADY_SPEED_VARIATION = 0.02
+"""Synthetic pulses whose per-revolution speed varies by more than 2 % swept the mesh line
+across the transfer path's phase: see :func:`_chosen_estimate`."""
+
+
+def _chosen_estimate(working: list[tuple[float, Any, str]], followed_drift: bool) -> tuple[float, Any, str]:
+    """Which of the working (jitter, estimate, channel) triples gives the angle.
+
+    At a steady speed, the steadiest pulses (least jitter). When the speed sweeps — the steadiest
+    first-pass pulses vary by more than :data:`STEADY_SPEED_VARIATION`, or only the drift pass
+    works — the highest harmonic that works in either pass (then the least jitter): as
+    the mesh frequency sweeps, the transfer path's phase at it turns, and the angle read from
+    harmonic h wanders by that phase / (2π h) *teeth*. Measured: 0.4 of a tooth on harmonic 1
+    against 0.1 on harmonic 5 of a ±20 % swing; a 66-tooth day sweeping ±8 % whose harmonic-1
+    pulses were the steadiest landed 1.4 teeth off (held-out seed 8006 of
+    ``benchmarks/bench_tachless.py --max-drift 0.2``, scored by the tach's angle).
+    """
+    steadiest = min(working, key=lambda item: item[0])
+    if not followed_drift and steadiest[1].speed_variation <= STEADY_SPEED_VARIATION:
+        return steadiest
+    return min(working, key=lambda item: (-item[1].harmonic, item[0]))
+
+
 def mesh_phase_angle(
     signals: Mapping[str, np.ndarray],
     sample_rate_hz: float,
@@ -220,13 +243,16 @@ def mesh_phase_angle(
             refusals.append(f"{name}: {error}")
             continue
         lines[name] = (x, candidate_hz, comb_hz, harmonics)
+    first_pass: list[tuple[float, Any, str]] = []
     for follow_drift in (False, True):
+        working: list[tuple[float, Any, str]] = []  # (jitter, estimate, channel) of this pass
         for name, (x, candidate_hz, comb_hz, harmonics) in lines.items():
             shaft_hz = candidate_hz if follow_drift else comb_hz
             shaft_cycles = None
             if follow_drift:
                 harmonics, shaft_cycles = _tracked_ranking(x, sample_rate_hz, pinion_teeth, shaft_hz, search)
             first_refusal = ""
+            found = False
             for harmonic in harmonics[:HARMONICS_TRIED]:
                 try:
                     estimate = tachless_shaft_angle(
@@ -238,19 +264,19 @@ def mesh_phase_angle(
                 except TachlessError as error:
                     first_refusal = first_refusal or str(error)
                     continue
-                jitter = _pulse_jitter_rev(estimate.pulse_times_s)
-                # Along a drift, the highest harmonic that works: as the mesh frequency sweeps,
-                # the transfer path's phase at it turns, and the angle read from harmonic h
-                # wanders by that phase / h (measured: 0.4 of a tooth within a 4-s record on
-                # harmonic 1 against 0.1 on harmonic 5 of a ±20 % swing).
-                rank = -float(estimate.harmonic) if follow_drift else jitter
-                if best is None or rank < best[0]:
-                    best = (rank, estimate, name)
-            if first_refusal and (best is None or best[2] != name):
+                working.append((_pulse_jitter_rev(estimate.pulse_times_s), estimate, name))
+                found = True
+            if first_refusal and not found:
                 refusals.append(f"{name}{' (along the drift)' if follow_drift else ''}: {first_refusal}")
-        if best is not None:
-            followed_drift = follow_drift
-            break  # lines that stand out in the whole record are preferred: steadier phase
+        if not follow_drift:
+            first_pass = working
+            if working and _chosen_estimate(working, False)[1].speed_variation <= STEADY_SPEED_VARIATION:
+                best, followed_drift = _chosen_estimate(working, False), False
+                break  # lines that stand out in the whole record are preferred: steadier phase
+        elif first_pass or working:
+            # an unsteady first pass competes with the drift pass: the highest harmonic wins
+            best = _chosen_estimate(first_pass + working, True)
+            followed_drift = any(best is item for item in working)
     if best is None:
         return "; ".join(refusals) or "no accelerometer signal"
     _rank, estimate, name = best

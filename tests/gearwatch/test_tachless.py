@@ -91,6 +91,24 @@ def test_a_tach_recorded_alongside_finds_every_aligned_day_at_one_shaft_angle() 
     assert max(abs(o) for o in offsets_teeth) < 0.25, offsets_teeth
 
 
+@pytest.mark.parametrize(("speed_variation", "chosen"), [(0.01, 1), (0.17, 4)])
+def test_a_sweeping_speed_takes_the_highest_harmonic_not_the_steadiest_pulses(
+    speed_variation: float, chosen: int,
+) -> None:
+    # As the mesh frequency sweeps, the path's phase at it turns and the angle read from harmonic
+    # h wanders by phase / (2π h) teeth: a 66-tooth day sweeping ±8 % whose harmonic-1 pulses
+    # were the steadiest landed 1.4 teeth off. At a steady speed the steadiest pulses still win.
+    from dsp.tachless import ShaftAngleEstimate
+    from gearwatch.usecases.tachless import _chosen_estimate
+
+    def estimate(harmonic: int) -> ShaftAngleEstimate:
+        return ShaftAngleEstimate(np.arange(10.0), 1.0, 66.0 * harmonic, 20.0, 0.5, speed_variation, 66, harmonic)
+
+    working = [(1e-4, estimate(1), "acc"), (5e-4, estimate(4), "acc")]
+    assert _chosen_estimate(working, followed_drift=False)[1].harmonic == chosen
+    assert _chosen_estimate(working, followed_drift=True)[1].harmonic == 4
+
+
 def test_a_corrupt_sample_does_not_cost_a_tachless_record_its_angle() -> None:
     # One float32-fitting 3e38 sample flattens the whole record's spectrum: the mesh phase is
     # read with the defect bridged, as the averages are, and the repair is counted.
