@@ -22,6 +22,13 @@ Scored (the tach is used only to score):
 * **alignment** per tach-less day after the first: *right* when its campaign-frame pinion average
   sits where the tach says (the shift between its campaign-frame and tach-frame averages equals
   the reference day's within half a mesh period), *refused*, or *wrong*;
+* **alignment by the tach's angle** (``alignment_by_pulses``, ``pulse_offsets_teeth``): the same
+  days scored by where the tach puts sample 0 of the campaign-frame average — the circular mean,
+  over the record's synthetic pulses, of the tach's angle at each, moved by the frame's
+  ``pinion_delay_samples`` — against the founding day's; *right* within half a tooth. It does not
+  depend on how alike a day's tach and tach-less averages look, which the first truth does (a
+  speed sweeping through the path's resonances changes an average's shape, and so does a fresh
+  spall: on those days the averages' best match can be a tooth off while the frame is right);
 * **first alarm day** and **alarmed tooth** of one fixed bench rule on ``mci_depth``
   (:class:`detection.alarms.RuleSettings`: baseline from the first 4 days, warning at 4 robust
   spreads, persistence 2) in both chains; the tach-less tooth is mapped to the tach numbering
@@ -60,7 +67,7 @@ from gearwatch.floor.campaign import (
 from gearwatch.floor.errors import RecordRejected
 from gearwatch.floor.results import AnalysisParameters, RecordAnalysis, ToothFrameReference
 from gearwatch.usecases.analyze import analyze_record
-from gearwatch.usecases.tachless import fold_reference
+from gearwatch.usecases.tachless import fold_reference, mesh_phase_angle
 
 DEV_SEEDS = range(1000, 1010)
 HELD_OUT_SEEDS = range(2000, 2020)
@@ -204,18 +211,32 @@ def _first_alarm(day_teeth: list[dict[int, float] | None]) -> tuple[int | None, 
     return None, None
 
 
-def _campaign_frame_angle_rev(tach: np.ndarray, fs: float, analysis: RecordAnalysis,
-                              frame: dict[str, Any], samples_per_rev: int) -> float:
+def _campaign_frame_angle_rev(tach: np.ndarray, record: RecordData, campaign: Campaign,
+                              params: AnalysisParameters, frame: dict[str, Any],
+                              samples_per_rev: int) -> float:
     """The tach's pinion angle (revolutions, mod 1) at sample 0 of a tach-less day's
-    campaign-frame average: angle 0 of its own average is its first synthetic pulse
-    (``quality.tachless.first_pulse_s``), moved by the frame's ``pinion_delay_samples``.
+    campaign-frame average.
 
-    A second truth beside the averages' best match: it does not depend on how alike the two
-    averages of a day look (a speed sweeping through the path's resonances, a fresh spall)."""
-    pulses = pulse_times_from_waveform(tach, fs)  # the bench's tach: once per pinion revolution
-    assert analysis.quality.tachless is not None
-    first = float(analysis.quality.tachless["first_pulse_s"])
-    own_angle = float(np.interp(first, pulses, np.arange(pulses.size, dtype=np.float64)))
+    Sample 0 of the record's own average sits, on average over its revolutions, at the circular
+    mean of the tach's angle at the synthetic pulses (the mesh-phase angle the analysis used,
+    recomputed here: the same function on the same samples); the frame's
+    ``pinion_delay_samples`` moves it. A second truth beside the averages' best match, which
+    depends on how alike a day's two averages look (a speed sweeping through the path's
+    resonances, a fresh spall). The mean over the pulses, not the first pulse alone: along a
+    sweep the angle read from the mesh phase wanders with the path's phase, and the average
+    sits where the wander's mean puts it."""
+    rig = campaign.rig
+    assert rig.pinion_teeth is not None and rig.gear_teeth is not None
+    angle = mesh_phase_angle({"acc": np.asarray(record.channels["acc"], dtype=np.float64)},
+                             record.sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
+                             nominal_pinion_rpm=rig.nominal_pinion_rpm)
+    assert not isinstance(angle, str), angle
+    synthetic = angle.tach.pulse_times_s
+    pulses = pulse_times_from_waveform(tach, record.sample_rate_hz)  # once per pinion revolution
+    inside = (synthetic > pulses[0]) & (synthetic < pulses[-1])
+    at = np.interp(synthetic[inside], pulses, np.arange(pulses.size, dtype=np.float64))
+    at = at - np.flatnonzero(inside)  # pulse i is i revolutions after pulse 0
+    own_angle = float(np.angle(np.mean(np.exp(2j * np.pi * at))) / (2 * np.pi))
     return (own_angle - float(frame["pinion_delay_samples"]) / samples_per_rev) % 1.0
 
 
@@ -288,7 +309,7 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
                 margins.append(frame["pinion"]["margin"])
             continue
         tl_teeth.append({t.tooth: t.mci_depth for t in channel.teeth})
-        angle = _campaign_frame_angle_rev(tach, fs, tl, frame, n)
+        angle = _campaign_frame_angle_rev(tach, RecordData({"acc": noisy}, fs), without, params, frame, n)
         if pulse_reference is None:
             pulse_reference = angle
         else:

@@ -217,11 +217,12 @@ def mesh_phase_angle(
 
     Every accelerometer channel and mesh harmonic 1…:data:`MAX_HARMONIC` with a line is tried
     (:func:`dsp.tachless.tachless_shaft_angle`); the pulses with the smallest jitter
-    (:func:`_pulse_jitter_rev`) win. When none works (a speed drifting within the record smears
-    the lines and moves them across each other's search windows), a second pass tracks the
-    speed on the whole mesh comb and follows each line along it (``follow_drift``; harmonics
-    ranked by how far they stand out there; the highest harmonic that works wins, see below).
-    The winner goes through the tach checks of
+    (:func:`_pulse_jitter_rev`) win if their speed is steady. When none works (a speed drifting
+    within the record smears the lines and moves them across each other's search windows), or
+    the steadiest pulses sweep by more than :data:`STEADY_SPEED_VARIATION`, a second pass tracks
+    the speed on the whole mesh comb and follows each line along it (``follow_drift``; harmonics
+    ranked by how far they stand out there), and the highest harmonic that works in either pass
+    wins (:func:`_chosen_estimate`). The winner goes through the tach checks of
     :func:`dsp.tach.analyze_tachometer` (revolutions, speed range, speed variation) with
     ``params``' limits. Returns a one-line reason (the first refusal of each channel) when
     nothing works.
