@@ -300,7 +300,8 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         frame = channel.tooth_frame
         q = tl.quality.tachless or {}
         angles.append([q.get("harmonic"), q.get("line_followed_along_drift"),
-                       None if not q else round(float(q["speed_variation"]), 4)])
+                       None if not q else round(float(q["speed_variation"]), 4),
+                       q.get("harmonic_disagreement_teeth")])
         if not channel.teeth:
             tl_teeth.append(None)
             alignment.append("refused" if frame.get("kind") == "refused" else "no-angle")

@@ -56,6 +56,7 @@ from gearwatch.floor.results import AnalysisParameters, ChannelAnalysis, ToothFr
 
 __all__ = [
     "FOLD_RECORDS",
+    "MAX_HARMONIC_DISAGREEMENT_TEETH",
     "FramePlacement",
     "MeshPhaseAngle",
     "PlacedAverages",
@@ -63,6 +64,7 @@ __all__ = [
     "mesh_phase_angle",
     "place_in_tooth_frame",
     "tach_frame_fingerprints",
+    "tachless_frame_refusal",
 ]
 
 MAX_HARMONIC = 8
@@ -79,6 +81,32 @@ NO_HINT_REFUSAL = (
     "which can pick a wrong line family and give a wrong angle (measured: 6 wrong days in 140, "
     "docs/tachless.md); give the nominal speed for per-tooth results"
 )
+MAX_HARMONIC_DISAGREEMENT_TEETH = 0.5
+"""Per-tooth numbers are refused when the angle read from another working mesh harmonic of the
+same channel wanders more than half a tooth from the chosen one over the record
+(``quality.tachless.harmonic_disagreement_teeth``): a speed sweeping across the transfer path's
+resonances turns the path's phase, and the angle read from harmonic h moves by that phase /
+(2π h) teeth, differently for each harmonic. Measured with the tach's angle as truth
+(``benchmarks/bench_tachless.py --max-drift 0.2``, seeds 7000–7019, 8000–8019, 9000–9019): the
+4 days aligned wrong (0.5–1.6 teeth off) disagreed by 0.76–1.30 teeth; 98 of 107 right days by
+less than 0.5 (at ≤ 5 % drift, 53 of 53)."""
+
+
+def tachless_frame_refusal(summary: Mapping[str, Any]) -> str:
+    """Why a tach-less record's per-tooth numbers are refused before any alignment, or ""."""
+    if summary.get("speed_from") == "spectrum":
+        return NO_HINT_REFUSAL
+    disagreement = summary.get("harmonic_disagreement_teeth")
+    if disagreement is not None and disagreement > MAX_HARMONIC_DISAGREEMENT_TEETH:
+        return (
+            f"tooth frame refused: the angles read from two mesh harmonics of {summary.get('channel')} "
+            f"wander {disagreement:.2f} teeth apart over the record (> {MAX_HARMONIC_DISAGREEMENT_TEETH:g}; "
+            "a speed sweeping across the transfer path's resonances): the tooth numbers would be "
+            "unsure to a tooth"
+        )
+    return ""
+
+
 SPECTRUM_SEARCH_FRACTION = 0.05
 """Around the speed found in the spectrum, the mesh line is looked for within ±5 % (a drifting
 speed smears the line; the tracked band follows it, :func:`dsp.tachless.mesh_ridge_cycles`)."""
@@ -181,6 +209,18 @@ def _tracked_ranking(
     return sorted(standing, key=lambda h: standing[h], reverse=True), shaft_cycles
 
 
+def _angle_disagreement_teeth(a: Any, b: Any) -> float:
+    """How far two mesh-phase angles of one record wander apart over it, in teeth: the spread
+    (max − min) of ``b``'s revolutions at ``a``'s pulses minus ``a``'s."""
+    inside = (a.pulse_times_s > b.pulse_times_s[0]) & (a.pulse_times_s < b.pulse_times_s[-1])
+    if inside.sum() < 2:
+        return math.nan
+    at = np.interp(a.pulse_times_s[inside], b.pulse_times_s, np.arange(b.pulse_times_s.size, dtype=np.float64))
+    offset = at - np.flatnonzero(inside)
+    offset = (offset - offset[0] + 0.5) % 1.0 - 0.5  # whole revolutions are the pulses' numbering
+    return float(np.ptp(offset) * a.mesh_order)
+
+
 STEADY_SPEED_VARIATION = 0.02
 """Synthetic pulses whose per-revolution speed varies by more than 2 % swept the mesh line
 across the transfer path's phase: see :func:`_chosen_estimate`."""
@@ -245,6 +285,7 @@ def mesh_phase_angle(
             continue
         lines[name] = (x, candidate_hz, comb_hz, harmonics)
     first_pass: list[tuple[float, Any, str]] = []
+    working_all: list[tuple[float, Any, str]] = []
     for follow_drift in (False, True):
         working: list[tuple[float, Any, str]] = []  # (jitter, estimate, channel) of this pass
         for name, (x, candidate_hz, comb_hz, harmonics) in lines.items():
@@ -278,6 +319,7 @@ def mesh_phase_angle(
             # an unsteady first pass competes with the drift pass: the highest harmonic wins
             best = _chosen_estimate(first_pass + working, True)
             followed_drift = any(best is item for item in working)
+        working_all = first_pass + (working if follow_drift else [])
     if best is None:
         return "; ".join(refusals) or "no accelerometer signal"
     _rank, estimate, name = best
@@ -292,7 +334,11 @@ def mesh_phase_angle(
         )
     except TachometerError as error:
         return f"synthetic pulses from {name}, harmonic {estimate.harmonic}: {error}"
+    others = [item[1] for item in working_all if item is not best and item[2] == name]
+    spreads = [d for d in (_angle_disagreement_teeth(estimate, other) for other in others) if math.isfinite(d)]
+    disagreement = round(max(spreads), 3) if spreads else None
     summary = {
+        "harmonic_disagreement_teeth": disagreement,
         "channel": name,
         "harmonic": int(estimate.harmonic),
         "mesh_line_hz": float(estimate.mesh_line_hz),
