@@ -71,12 +71,12 @@ from gearwatch.usecases.signal_checks import (
     clipped_fraction,
 )
 from gearwatch.usecases.tachless import (
-    FramePlacement as _FramePlacement,
-)
-from gearwatch.usecases.tachless import (
+    NO_HINT_REFUSAL,
     place_in_tooth_frame,
     tach_frame_fingerprints,
-    tachless_frame_refusal,
+)
+from gearwatch.usecases.tachless import (
+    FramePlacement as _FramePlacement,
 )
 
 __all__ = [
@@ -313,7 +313,8 @@ def _analyzed_channels(
                     reference=None if tooth_frames is None else tooth_frames.get(channel.name),
                     campaign_mode=tooth_frames is not None,
                     record_sha256=input_sha256,
-                    refusal=tachless_frame_refusal(shaft.tachless or {}),
+                    refusal=(NO_HINT_REFUSAL if (shaft.tachless or {}).get("speed_from") == "spectrum"
+                             else ""),
                 )
             ),
         )

@@ -35,6 +35,7 @@ from dsp.tach import TachAnalysis, TachometerError, analyze_tachometer
 from dsp.tachless import (
     MIN_LINE_PROMINENCE_DB,
     NEIGHBOUR_FRACTION,
+    ShaftAngleEstimate,
     TachlessError,
     agreeing_harmonics,
     comb_shaft_cycles,
@@ -56,7 +57,6 @@ from gearwatch.floor.results import AnalysisParameters, ChannelAnalysis, ToothFr
 
 __all__ = [
     "FOLD_RECORDS",
-    "MAX_HARMONIC_DISAGREEMENT_TEETH",
     "FramePlacement",
     "MeshPhaseAngle",
     "PlacedAverages",
@@ -64,7 +64,6 @@ __all__ = [
     "mesh_phase_angle",
     "place_in_tooth_frame",
     "tach_frame_fingerprints",
-    "tachless_frame_refusal",
 ]
 
 MAX_HARMONIC = 8
@@ -81,32 +80,6 @@ NO_HINT_REFUSAL = (
     "which can pick a wrong line family and give a wrong angle (measured: 6 wrong days in 140, "
     "docs/tachless.md); give the nominal speed for per-tooth results"
 )
-MAX_HARMONIC_DISAGREEMENT_TEETH = 0.5
-"""Per-tooth numbers are refused when the angle read from another working mesh harmonic of the
-same channel wanders more than half a tooth from the chosen one over the record
-(``quality.tachless.harmonic_disagreement_teeth``): a speed sweeping across the transfer path's
-resonances turns the path's phase, and the angle read from harmonic h moves by that phase /
-(2π h) teeth, differently for each harmonic. Measured with the tach's angle as truth
-(``benchmarks/bench_tachless.py --max-drift 0.2``, seeds 7000–7019, 8000–8019, 9000–9019): the
-4 days aligned wrong (0.5–1.6 teeth off) disagreed by 0.76–1.30 teeth; 98 of 107 right days by
-less than 0.5 (at ≤ 5 % drift, 53 of 53)."""
-
-
-def tachless_frame_refusal(summary: Mapping[str, Any]) -> str:
-    """Why a tach-less record's per-tooth numbers are refused before any alignment, or ""."""
-    if summary.get("speed_from") == "spectrum":
-        return NO_HINT_REFUSAL
-    disagreement = summary.get("harmonic_disagreement_teeth")
-    if disagreement is not None and disagreement > MAX_HARMONIC_DISAGREEMENT_TEETH:
-        return (
-            f"tooth frame refused: the angles read from two mesh harmonics of {summary.get('channel')} "
-            f"wander {disagreement:.2f} teeth apart over the record (> {MAX_HARMONIC_DISAGREEMENT_TEETH:g}; "
-            "a speed sweeping across the transfer path's resonances): the tooth numbers would be "
-            "unsure to a tooth"
-        )
-    return ""
-
-
 SPECTRUM_SEARCH_FRACTION = 0.05
 """Around the speed found in the spectrum, the mesh line is looked for within ±5 % (a drifting
 speed smears the line; the tracked band follows it, :func:`dsp.tachless.mesh_ridge_cycles`)."""
@@ -209,7 +182,7 @@ def _tracked_ranking(
     return sorted(standing, key=lambda h: standing[h], reverse=True), shaft_cycles
 
 
-def _angle_disagreement_teeth(a: Any, b: Any) -> float:
+def _angle_disagreement_teeth(a: ShaftAngleEstimate, b: ShaftAngleEstimate) -> float:
     """How far two mesh-phase angles of one record wander apart over it, in teeth: the spread
     (max − min) of ``b``'s revolutions at ``a``'s pulses minus ``a``'s."""
     inside = (a.pulse_times_s > b.pulse_times_s[0]) & (a.pulse_times_s < b.pulse_times_s[-1])
@@ -310,6 +283,7 @@ def mesh_phase_angle(
                 found = True
             if first_refusal and not found:
                 refusals.append(f"{name}{' (along the drift)' if follow_drift else ''}: {first_refusal}")
+        working_all = first_pass + working if follow_drift else working
         if not follow_drift:
             first_pass = working
             if working and _chosen_estimate(working, False)[1].speed_variation <= STEADY_SPEED_VARIATION:
@@ -319,7 +293,6 @@ def mesh_phase_angle(
             # an unsteady first pass competes with the drift pass: the highest harmonic wins
             best = _chosen_estimate(first_pass + working, True)
             followed_drift = any(best is item for item in working)
-        working_all = first_pass + (working if follow_drift else [])
     if best is None:
         return "; ".join(refusals) or "no accelerometer signal"
     _rank, estimate, name = best
@@ -338,7 +311,6 @@ def mesh_phase_angle(
     spreads = [d for d in (_angle_disagreement_teeth(estimate, other) for other in others) if math.isfinite(d)]
     disagreement = round(max(spreads), 3) if spreads else None
     summary = {
-        "harmonic_disagreement_teeth": disagreement,
         "channel": name,
         "harmonic": int(estimate.harmonic),
         "mesh_line_hz": float(estimate.mesh_line_hz),
@@ -352,6 +324,11 @@ def mesh_phase_angle(
         # angle 0 of this record's own averages (before any tooth-frame shift), for an audit
         # against a tach recorded alongside
         "first_pulse_s": float(tach.pulse_times_s[0]),
+        # how far another working harmonic's angle wanders from this one over the record (teeth;
+        # None: no other): a sweep across the path's resonances moves each harmonic's angle by
+        # its own phase / (2π h). Shown, not acted on: as a refusal rule (> 0.5 tooth) it caught
+        # the wrong days of one seed range and none of another (docs/tachless.md).
+        "harmonic_disagreement_teeth": disagreement,
     }
     return MeshPhaseAngle(tach=tach, summary=summary)
 
