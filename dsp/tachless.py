@@ -486,7 +486,9 @@ def comb_speed_hz(
     ``prominence`` and ``frequency_hz`` are :func:`dsp.meshspectrum.line_prominence` of the
     record; each harmonic's contribution is cut at 0 and at :data:`~dsp.meshspectrum.COMB_CAP_NP`
     as in :func:`comb_shaft_cycles`, and speeds within :data:`COMB_TIE_NP` of the best score go
-    to the one whose lines are tallest uncapped. Why the comb and not each harmonic's tallest line: from harmonic 5 on, a ±20 % window holds
+    to the one whose lines are tallest uncapped.
+
+    Why the comb and not each harmonic's tallest line: from harmonic 5 on, a ±20 % window holds
     the neighbouring harmonics (5 × 1.2 = 6), and the tallest line in it may be harmonic 6 — whose
     phase, read as harmonic 5's, runs the angle 6/5 too fast, the same way every day (measured:
     4 of 7 days of a 24/48-tooth campaign, aligned to each other and *wrong*). Every harmonic

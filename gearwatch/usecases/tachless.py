@@ -194,13 +194,16 @@ def _angle_disagreement_teeth(a: ShaftAngleEstimate, b: ShaftAngleEstimate) -> f
     return float(np.ptp(offset) * a.mesh_order)
 
 
+Candidate = tuple[float, ShaftAngleEstimate, str]
+"""A working mesh-phase angle: (pulse jitter in revolutions, the estimate, its channel)."""
+
 STEADY_SPEED_VARIATION = 0.02
 """Synthetic pulses whose per-revolution speed varies by more than 2 % swept the mesh line
 across the transfer path's phase: see :func:`_chosen_estimate`."""
 
 
-def _chosen_estimate(working: list[tuple[float, Any, str]], followed_drift: bool) -> tuple[float, Any, str]:
-    """Which of the working (jitter, estimate, channel) triples gives the angle.
+def _chosen_estimate(working: list[Candidate], followed_drift: bool) -> Candidate:
+    """Which of the working candidates gives the angle.
 
     At a steady speed, the steadiest pulses (least jitter). When the speed sweeps — the steadiest
     first-pass pulses vary by more than :data:`STEADY_SPEED_VARIATION`, or only the drift pass
@@ -242,7 +245,7 @@ def mesh_phase_angle(
     """
     bandwidth = min(MAX_BANDWIDTH_ORDERS, 0.75 * min(1.0, pinion_teeth / gear_teeth))
     refusals: list[str] = []
-    best: tuple[float, Any, str] | None = None
+    best: Candidate | None = None
     followed_drift = False
     search = SPEED_HINT_FRACTION if nominal_pinion_rpm is not None else SPECTRUM_SEARCH_FRACTION
     lines: dict[str, tuple[np.ndarray, float, float, list[int]]] = {}
@@ -257,10 +260,10 @@ def mesh_phase_angle(
             refusals.append(f"{name}: {error}")
             continue
         lines[name] = (x, candidate_hz, comb_hz, harmonics)
-    first_pass: list[tuple[float, Any, str]] = []
-    working_all: list[tuple[float, Any, str]] = []
+    first_pass: list[Candidate] = []
+    working_all: list[Candidate] = []
     for follow_drift in (False, True):
-        working: list[tuple[float, Any, str]] = []  # (jitter, estimate, channel) of this pass
+        working: list[Candidate] = []  # this pass's
         for name, (x, candidate_hz, comb_hz, harmonics) in lines.items():
             shaft_hz = candidate_hz if follow_drift else comb_hz
             shaft_cycles = None
@@ -286,8 +289,9 @@ def mesh_phase_angle(
         working_all = first_pass + working if follow_drift else working
         if not follow_drift:
             first_pass = working
-            if working and _chosen_estimate(working, False)[1].speed_variation <= STEADY_SPEED_VARIATION:
-                best, followed_drift = _chosen_estimate(working, False), False
+            chosen = _chosen_estimate(working, False) if working else None
+            if chosen is not None and chosen[1].speed_variation <= STEADY_SPEED_VARIATION:
+                best, followed_drift = chosen, False
                 break  # lines that stand out in the whole record are preferred: steadier phase
         elif first_pass or working:
             # an unsteady first pass competes with the drift pass: the highest harmonic wins
