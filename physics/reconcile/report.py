@@ -256,7 +256,10 @@ def _value_with_interval(name: str, value: Any, ci: Any) -> str:
 def _place(f: dict[str, Any]) -> str:
     wheel, tooth = f.get("wheel"), f.get("tooth")
     if tooth is not None:
-        return f"on {wheel} tooth {tooth}" if wheel else f"on tooth {tooth}"
+        place = f"on {wheel} tooth {tooth}" if wheel else f"on tooth {tooth}"
+        if f.get("tooth_in_record") is not None:  # gear teeth: record_json's gear_tooth_frame
+            place += f" (tooth {f['tooth_in_record']} in the record's frame)"
+        return place
     return f"on the {wheel}" if wheel else ""
 
 
@@ -341,7 +344,9 @@ def _finding_row(f: dict[str, Any]) -> dict[str, Any]:
     return {
         "mechanism": str(f["mechanism"]).replace("_", " "),
         "wheel": f.get("wheel") or "—",
-        "tooth": "—" if f.get("tooth") is None else f["tooth"],
+        "tooth": "—" if f.get("tooth") is None else (
+            f["tooth"] if f.get("tooth_in_record") is None
+            else f"{f['tooth']} (record: {f['tooth_in_record']})"),
         "order": f.get("order"),
         "parameters": parameters,
         "delta_bic": fmt(evidence.get("delta_bic"), 4),

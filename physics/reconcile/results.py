@@ -89,6 +89,13 @@ class ReconcileOptions:
     finer-step, perturbed truth scored it at ΔBIC −4 … +9, p ≈ 1e-3, too near the threshold)."""
 
 
+GEAR_TOOTH_FRAME = (
+    "a gear finding's 'tooth' is the configuration's numbering (gear tooth 1 meets pinion tooth 1"
+    " at the simulator's mesh origin); 'tooth_in_record' is the same tooth in the record's frame:"
+    " gear tooth 1 is the one pinion tooth 1 meets first after the record's first revolution mark"
+)
+
+
 @dataclass
 class Finding:
     mechanism: str
@@ -145,12 +152,53 @@ class ReconciliationResult:
     """Defects whose shape the catalogue does not capture (compensating findings), how the
     intervals account for model-form error, and what this sensor cannot separate."""
 
+    def gear_tooth_in_record(self, tooth: int) -> int | None:
+        """A gear tooth of the configuration's numbering in the record's own frame.
+
+        The configuration numbers gear teeth from its mesh origin (pinion tooth 1 on gear tooth
+        1), and its forward simulations reach the record's first revolution mark after
+        :func:`physics.simulator.warmup_revolutions` pinion revolutions ``m``, which depends on
+        the speed: there pinion tooth 1 meets gear tooth ``(m·Z1 mod Z2) + 1``. In the record's
+        frame that tooth is gear tooth 1 — the one that meets pinion tooth 1 first after the
+        record's first revolution mark, something the user can find on the rig. None when the
+        warm-up is not stretched to a mark (a very slow shaft).
+
+        Examples
+        --------
+        The 20/21 rig at 1000 rpm (m = 4, 4·20 ≡ 17 mod 21): configuration tooth 18 is the record's
+        tooth 1, configuration tooth 1 the record's 5.
+
+        >>> from physics.config import GearPairModel, Geometry
+        >>> from physics.reconcile.results import ReconciliationResult
+        >>> model = GearPairModel(geometry=Geometry(pinion_teeth=20, gear_teeth=21))
+        >>> stub = ReconciliationResult.__new__(ReconciliationResult)
+        >>> stub.calibrated_base_model = model
+        >>> stub.spectrum = type("S", (), {"speed_rpm": 1000.0})()
+        >>> stub.gear_tooth_in_record(18), stub.gear_tooth_in_record(1)
+        (1, 5)
+        """
+        from physics.simulator import warmup_revolutions
+
+        model = self.calibrated_base_model
+        geometry = model.geometry
+        speed = float(self.spectrum.speed_rpm)
+        m = warmup_revolutions(model, speed if speed > 0 else None)
+        if m is None:
+            return None
+        return (int(tooth) - 1 - m * geometry.pinion_teeth) % geometry.gear_teeth + 1
+
     def to_json(self) -> dict[str, Any]:
+        findings = []
+        for finding in self.findings:
+            entry = finding.to_json()
+            if finding.wheel == "gear" and finding.tooth is not None:
+                entry["tooth_in_record"] = self.gear_tooth_in_record(finding.tooth)
+            findings.append(entry)
         return {
             "status": self.status,
             "baseline": self.baseline,
             "mismatches": [_clean(m) for m in self.mismatches],
-            "findings": [f.to_json() for f in self.findings],
+            "findings": findings,
             "unresolved": self.unresolved,
             "final": self.final,
             "record": {
@@ -158,6 +206,7 @@ class ReconciliationResult:
                 "hunting_periods": self.spectrum.segments,
                 "pinion_teeth": self.spectrum.pinion_teeth,
                 "gear_teeth": self.spectrum.gear_teeth,
+                "gear_tooth_frame": GEAR_TOOTH_FRAME,
             },
             "reference": self.reference,
             "catalogue_unavailable": self.catalogue_unavailable,

@@ -96,3 +96,33 @@ def test_the_independent_truths_gear_teeth_are_scored_in_the_configurations_numb
     z2 = scenario.fit_model.geometry.gear_teeth
     assert (scenario.fit_model.geometry.pinion_teeth, z2) == (20, 21)
     assert [gear_tooth_in_configuration(scenario, t, 1000.0) for t in (21, 5, 1)] == [18, 2, 19]
+
+
+def test_a_gear_findings_tooth_in_the_records_frame_is_the_one_pinion_tooth_1_meets_first() -> None:
+    """``tooth_in_record`` numbers gear teeth from the one pinion tooth 1 meets at the record's
+    first revolution mark. Read off simulated records (the gear's angle at the first tach edge,
+    in gear pitches from the mesh origin): at 400, 1000 and 3000 rpm the warm-up differs, so the
+    configuration's tooth there differs, and it is the record's tooth 1 every time."""
+    import dataclasses
+    import math
+
+    from physics.reconcile.results import ReconciliationResult
+    from physics.reconcile.scenarios import default_base
+    from physics.simulator import simulate
+
+    met = set()
+    for rpm in (400.0, 1000.0, 3000.0):
+        model = default_base().replace(
+            operating=dataclasses.replace(default_base().operating, speed_rpm=rpm))
+        record = simulate(model, seconds=0.3, seed=1)
+        first = round(record.tach_pulse_times_s[0] * record.sample_rate_hz)
+        z2 = model.geometry.gear_teeth
+        passed = round(abs(float(record.gear_angle_rad[first])) * z2 / (2 * math.pi))
+        configuration_tooth = passed % z2 + 1
+        met.add(configuration_tooth)
+        result = ReconciliationResult.__new__(ReconciliationResult)
+        result.calibrated_base_model = model
+        result.spectrum = type("Spectrum", (), {"speed_rpm": rpm})()
+        assert result.gear_tooth_in_record(configuration_tooth) == 1, rpm
+        assert result.gear_tooth_in_record(configuration_tooth % z2 + 1) == 2, rpm
+    assert len(met) > 1  # the configuration's numbering at the mark does move with the speed
