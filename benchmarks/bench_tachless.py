@@ -240,6 +240,49 @@ def _campaign_frame_angle_rev(tach: np.ndarray, record: RecordData, campaign: Ca
     return (own_angle - float(frame["pinion_delay_samples"]) / samples_per_rev) % 1.0
 
 
+def _product_first_alarm(days: list[tuple[np.ndarray, float, list[float]] | None],
+                         pinion_teeth: int) -> tuple[int | None, int | None]:
+    """(first day, named tooth) of the per-tooth rules an operator gets by default: ``change``
+    (:mod:`dsp.toothchange` on the day's pinion average in the chain's frame, exactly what
+    :mod:`gearwatch.usecases.tooth_change` computes from the database) and ``score``, with their
+    default settings, evaluated as ``benchmarks/bench_detection.py`` does (the tooth named is the
+    top opening of the first day). ``days``: per day (pinion average, tooth 1's pitch angle, the
+    per-tooth scores), None for a day without per-tooth results (refused, no angle)."""
+    from bench_detection import (  # the same evaluation as the detection bench
+        BOTH_PER_TOOTH,
+        evaluate,
+    )
+
+    from dsp.toothchange import campaign_change_scores
+
+    kept = [d for d in days if d is not None]
+    changes = iter(campaign_change_scores([d[0] for d in kept], [d[1] for d in kept], pinion_teeth))
+    result_days: list[dict[str, Any]] = []
+    for number, day in enumerate(days, start=1):
+        if day is None:
+            result_days.append({"day": number, "rejected": "no per-tooth result"})
+            continue
+        change = next(changes)
+        result_days.append({"day": number, "teeth": {
+            "change": [math.nan] * pinion_teeth if change is None else [float(v) for v in change],
+            "score": [float(v) for v in day[2]],
+        }})
+    openings = evaluate({"spec": {"pinion_teeth": pinion_teeth}, "days": result_days},
+                        BOTH_PER_TOOTH, True, {})
+    if not openings:
+        return None, None
+    first = min(o[0] for o in openings)
+    return first, max((o for o in openings if o[0] == first), key=lambda o: o[3])[1]
+
+
+def _per_tooth_day(channel: Any) -> tuple[np.ndarray, float, list[float]] | None:
+    angle = channel.baseline_stats.get("tooth1_pitch_angle_deg")
+    if not channel.teeth or angle is None:
+        return None
+    return (np.asarray(channel.curves["pinion_average"], dtype=np.float64), float(angle),
+            [float(t.score) for t in channel.teeth])
+
+
 def _delay_between(a: np.ndarray, b: np.ndarray) -> int:
     """Sample delay d maximising Σ a[n + d]·b[n] (a is b delayed by d)."""
     full = np.fft.irfft(np.fft.rfft(a) * np.conj(np.fft.rfft(b)), n=a.size)
@@ -260,6 +303,8 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
     reference: ToothFrameReference | None = None
     tach_teeth: list[dict[int, float] | None] = []
     tl_teeth: list[dict[int, float] | None] = []
+    tach_days: list[tuple[np.ndarray, float, list[float]] | None] = []  # product rules' inputs
+    tl_days: list[tuple[np.ndarray, float, list[float]] | None] = []
     alignment: list[str] = []
     margins: list[float] = []
     reference_delay: int | None = None
@@ -289,15 +334,19 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
             # a slow, drifting day): there is no truth to score the tach-less day against
             tach_teeth.append(None)
             tl_teeth.append(None)
+            tach_days.append(None)
+            tl_days.append(None)
             alignment.append(NO_TACH_TRUTH)
             continue
         tach_teeth.append({t.tooth: t.mci_depth for t in tach_result.channels[0].teeth})
+        tach_days.append(_per_tooth_day(tach_result.channels[0]))
         tl: RecordAnalysis = analyze_record(
             RecordData({"acc": noisy}, fs), without, params, input_sha256=sha,
             tooth_frames={} if reference is None else {"acc": reference},
         )
         channel = tl.channels[0]
         frame = channel.tooth_frame
+        tl_days.append(_per_tooth_day(channel))
         q = tl.quality.tachless or {}
         angles.append([q.get("harmonic"), q.get("line_followed_along_drift"),
                        None if not q else round(float(q["speed_variation"]), 4),
@@ -330,12 +379,18 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         reference = folded or reference
     tach_day, tach_tooth = _first_alarm(tach_teeth)
     tl_day, tl_tooth_campaign = _first_alarm(tl_teeth)
-    tl_tooth = None
-    if tl_tooth_campaign is not None and reference_delay is not None:
+    product_tach_day, product_tach_tooth = _product_first_alarm(tach_days, spec.pinion_teeth)
+    product_tl_day, product_tl_tooth_campaign = _product_first_alarm(tl_days, spec.pinion_teeth)
+
+    def in_tach_numbering(tooth: int | None) -> int | None:
+        if tooth is None or reference_delay is None:
+            return None
         # campaign tooth k's pitch angle (tooth 1 at 0° in a tach-less campaign frame) in the tach
         # frame: campaign sample m is tach sample m − delay
-        angle = (tl_tooth_campaign - 1) * 360.0 / spec.pinion_teeth - reference_delay * 360.0 / n
-        tl_tooth = tooth_at_angle(angle % 360.0, spec.pinion_teeth, with_tach.rig.tooth1_pitch_angle_deg)
+        angle = (tooth - 1) * 360.0 / spec.pinion_teeth - reference_delay * 360.0 / n
+        return tooth_at_angle(angle % 360.0, spec.pinion_teeth, with_tach.rig.tooth1_pitch_angle_deg)
+
+    tl_tooth = in_tach_numbering(tl_tooth_campaign)
     return {
         "seed": spec.seed, "simulator": simulator, "teeth": [spec.pinion_teeth, spec.gear_teeth],
         "noise_ratio": round(spec.noise_ratio, 2), "spall_tooth": spec.spall_tooth,
@@ -343,6 +398,8 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         "pulse_offsets_teeth": pulse_offsets, "angles": angles,
         "margins": margins,
         "tach_first_alarm": [tach_day, tach_tooth], "tachless_first_alarm": [tl_day, tl_tooth],
+        "product_tach_first_alarm": [product_tach_day, product_tach_tooth],
+        "product_tachless_first_alarm": [product_tl_day, in_tach_numbering(product_tl_tooth_campaign)],
         "reasons": [r for r in reasons if r],
     }
 
@@ -367,16 +424,18 @@ NO_TACH_TRUTH = "tach rejected"
 """A day the tach chain refuses (no truth to score the tach-less chain against): not scored."""
 
 
-def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    days = [a for r in rows for a in r["alignment"] if a not in ("reference", NO_TACH_TRUTH)]
-    after_onset = [a for r in rows for d, a in enumerate(r["alignment"], start=1)
-                   if d >= r["onset_day"] and a not in ("reference", NO_TACH_TRUTH)]
-    right, wrong = days.count("right"), days.count("wrong")
-    refused, no_angle = days.count("refused"), days.count("no-angle")
-    by_pulses = [a for r in rows for a in r.get("alignment_by_pulses", [])]
-    same_day = same_tooth = near_tooth = both_silent = 0
+def _agreement(rows: list[dict[str, Any]], tach_key: str,
+               tachless_key: str) -> tuple[int, int, int, int, int, int]:
+    """Campaigns whose first alarms agree: (within a day, same tooth, tooth within one, both
+    silent, tach chain on the spalled tooth, tach-less chain on the spalled tooth); both silent
+    counts as agreeing."""
+    same_day = same_tooth = near_tooth = both_silent = tach_right = tachless_right = 0
     for r in rows:
-        (td, tt), (ld, lt) = r["tach_first_alarm"], r["tachless_first_alarm"]
+        if tach_key not in r:  # a row from before the product rules were scored
+            continue
+        (td, tt), (ld, lt) = r[tach_key], r[tachless_key]
+        tach_right += tt == r["spall_tooth"] and td is not None and td >= r["onset_day"]
+        tachless_right += lt == r["spall_tooth"] and ld is not None and ld >= r["onset_day"]
         if td is None and ld is None:
             both_silent += 1
             same_day += 1
@@ -390,6 +449,19 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             distance = min((tt - lt) % z, (lt - tt) % z)
             same_tooth += distance == 0
             near_tooth += distance <= 1
+    return same_day, same_tooth, near_tooth, both_silent, tach_right, tachless_right
+
+
+def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    days = [a for r in rows for a in r["alignment"] if a not in ("reference", NO_TACH_TRUTH)]
+    after_onset = [a for r in rows for d, a in enumerate(r["alignment"], start=1)
+                   if d >= r["onset_day"] and a not in ("reference", NO_TACH_TRUTH)]
+    right, wrong = days.count("right"), days.count("wrong")
+    refused, no_angle = days.count("refused"), days.count("no-angle")
+    by_pulses = [a for r in rows for a in r.get("alignment_by_pulses", [])]
+    same_day, same_tooth, near_tooth, both_silent, _, _ = _agreement(
+        rows, "tach_first_alarm", "tachless_first_alarm")
+    product = _agreement(rows, "product_tach_first_alarm", "product_tachless_first_alarm")
     count = max(1, len(rows))
     aligned_days = max(1, right + wrong)
     return {
@@ -402,6 +474,11 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "same_tooth_pct": 100.0 * same_tooth / count,
         "tooth_within_1_pct": 100.0 * near_tooth / count,
         "both_silent": both_silent,
+        "product_first_alarm_within_1_day_pct": 100.0 * product[0] / count,
+        "product_same_tooth_pct": 100.0 * product[1] / count,
+        "product_both_silent": product[3],
+        "product_spall_tooth_tach": product[4],
+        "product_spall_tooth_tachless": product[5],
         "spalled_days": len(after_onset),
         "spalled_right": after_onset.count("right"),
         "spalled_wrong": after_onset.count("wrong"),
@@ -458,6 +535,11 @@ def main() -> int:
               f"{s['same_tooth_pct']:9.0f}% {s['tooth_within_1_pct']:7.0f}% {s['both_silent']:11d}")
     for name, block in report.items():
         s = block["summary"]
+        print(f"{name}: the default per-tooth rules (change + score): first alarm within a day of "
+              f"the tach chain's {s['product_first_alarm_within_1_day_pct']:.0f} %, same tooth "
+              f"{s['product_same_tooth_pct']:.0f} %, both silent {s['product_both_silent']}; first "
+              f"alarm on the spalled tooth (on or after onset): tach {s['product_spall_tooth_tach']}, "
+              f"tach-less {s['product_spall_tooth_tachless']} of {s['campaigns']}")
         print(f"{name}: aligned days by the pulses' truth (the tach's angle at the campaign frame's "
               f"sample 0): right {s['right_by_pulses']}, wrong {s['wrong_by_pulses']}")
         print(f"{name}: days with the spall: {s['spalled_days']}, right {s['spalled_right']}, "
