@@ -33,6 +33,9 @@ Scored (the tach is used only to score):
   (:class:`detection.alarms.RuleSettings`: baseline from the first 4 days, warning at 4 robust
   spreads, persistence 2) in both chains; the tach-less tooth is mapped to the tach numbering
   through the reference day (both chains' averages of that day, matched over all sample shifts).
+* the same for **the default per-tooth rules** an operator gets (``change`` + ``score``, as
+  ``benchmarks/bench_detection.py`` evaluates them: :func:`_product_first_alarm`), and in how many
+  campaigns each chain's first alarm names the spalled tooth.
 
 Seeds 1000–1009 were used while choosing the refusal thresholds of :mod:`dsp.toothframe`
 (development); the table reports them apart from the held-out seeds 2000–2019.
