@@ -257,6 +257,32 @@ gave the change detector 30 % / 50 % / never 40 % (onset day / by the day after)
 40 % / never 50 % at 30 revolutions, and FM4 20 % / 40 % against 15 % / 30 %: what the day-to-day
 load, speed and stiffness changes do to every tooth's own signature through a resonant path is
 of the size of these pits' change, and averaging longer does not remove it.
+
+Tried on ``tune`` + ``tune-2`` (seeds 0–159, 80 spalled + 80 healthy per generator) and not
+adopted, 2026-11-27 (fifth session), offline on the stored pinion averages of every day (the
+``change`` rule alone; today's detector: independent ≤ onset 16 %, ≤ +1 31 %, right tooth 46 %,
+1/80 healthy alarmed; project 82 % / 90 % / 90 %, 0/80):
+
+* **A smooth complex gain between the day and the reference** (the day's non-shared orders
+  fitted as G(o)·reference with G a running least-squares ratio over ±1…±5 orders, with and
+  without a ridge toward 1; a speed change moves a resonant path's response by more than its
+  bandwidth, so the order-domain path changes from day to day): the healthy campaigns' highest
+  score fell a little (95th percentile 4.1 → 3.5–4.0) but so did the spalled tooth's (onset + 1
+  median 3.3 → 2.0–2.9); no setting raised detections at a matched false-alarm rate.
+* **Each tooth's own volatility from the reference days** (leave-one-out changes of the
+  reference records, per tooth, relative to the median tooth; the day's energy divided by it):
+  with the warning at 4, independent ≤ + 1 31 → 41 % at 1/80 healthy alarmed, but on the
+  project generator two healthy campaigns reached 6.3–7.2 (before: ≤ 4.4). The gain came from
+  the record's spread over its teeth shrinking once volatile teeth were discounted, which also
+  lifted teeth that moved for the first time; with the spread taken before the discount, the
+  gain is gone (independent ≤ + 1 29 % at zero false alarms, as today).
+* **Naming the first tooth of a burst** (a run of adjacent teeth above z = 2–4 gives its peak
+  to its first tooth: a ringing path spreads a pit's change over the following sectors, and of
+  the 91 independent detections at z ≥ 5 on these seeds, 17 named k + 1): onset + 1 right
+  tooth 57 → 44–54 %. Teeth *before* the spalled one are often in the run too — a pit centred
+  0.3–0.6 of the way along a path of contact 1.3–2 pitches long starts its change anywhere from
+  half a pitch before the tooth's pitch angle to a pitch after it — so the run's start is no
+  better a tooth than its peak.
 """
 
 from __future__ import annotations
