@@ -283,6 +283,11 @@ adopted, 2026-11-27 (fifth session), offline on the stored pinion averages of ev
   0.3–0.6 of the way along a path of contact 1.3–2 pitches long starts its change anywhere from
   half a pitch before the tooth's pitch angle to a pitch after it — so the run's start is no
   better a tooth than its peak.
+* **A lag that grows with the mesh frequency** (the sector centred ``0.5 + τ·f_mesh`` pitches
+  after the pitch angle, τ = 0.1–0.3 ms: a path's delay and ringing are in seconds, so at a high
+  mesh frequency they span more pitches; also 0.75 and ``0.4 + τ·f_mesh`` with τ = 0.2 ms): the
+  right tooth among days scoring ≥ 5 went 76 % → 62–77 % (independent) and 98 % → 77–98 %
+  (project); onset + 1 top tooth 57 % → 40–52 %. The constant half pitch stays.
 """
 
 from __future__ import annotations
