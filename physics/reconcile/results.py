@@ -177,6 +177,7 @@ class ReconciliationResult:
         >>> stub.gear_tooth_in_record(18), stub.gear_tooth_in_record(1)
         (1, 5)
         """
+        # lazily, like the rest of physics.reconcile: the simulator module loads the numba kernel
         from physics.simulator import warmup_revolutions
 
         model = self.calibrated_base_model
