@@ -434,8 +434,6 @@ def _agreement(rows: list[dict[str, Any]], tach_key: str,
     counts as agreeing."""
     same_day = same_tooth = near_tooth = both_silent = tach_right = tachless_right = 0
     for r in rows:
-        if tach_key not in r:  # a row from before the product rules were scored
-            continue
         (td, tt), (ld, lt) = r[tach_key], r[tachless_key]
         tach_right += tt == r["spall_tooth"] and td is not None and td >= r["onset_day"]
         tachless_right += lt == r["spall_tooth"] and ld is not None and ld >= r["onset_day"]
