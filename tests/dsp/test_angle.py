@@ -280,3 +280,30 @@ def test_anti_alias_band_follows_the_lowest_speed_under_20_percent_drift() -> No
     fast = angle_resample(np.cos(2 * np.pi * 24 * theta), fs, pulses, 1, spr)
     gain = np.abs(np.fft.rfft(fast, axis=1)[:, 24]) / (spr / 2)
     assert gain.min() < 0.01 and gain.max() > 0.99
+
+
+@pytest.mark.parametrize(
+    ("pulses_per_rev", "samples_per_rev", "shaft_ratio", "uniform_path"),
+    [
+        (1, 1280, 1.0, True),  # tach on the pinion: 1280 grid steps per pulse interval
+        (1, 1344, 20 / 21, True),  # the gear, tach on the pinion: 1280 again
+        (4, 1280, 1.0, True),  # 320 per interval
+        (3, 1280, 1.0, False),  # 426.67 per interval: the general path
+        (1, 1280, 21 / 20, True),  # the pinion, tach on the gear: 1344
+    ],
+)
+def test_grid_times_equal_scipy_cubic_spline_on_both_paths(
+    pulses_per_rev: int, samples_per_rev: int, shaft_ratio: float, uniform_path: bool
+) -> None:
+    # The phase model is scipy's not-a-knot CubicSpline through (tach angle, pulse time); the
+    # uniform-breaks product and the general per-point evaluation must both give it.
+    from dsp.splines import _whole_points_per_piece
+
+    _, _, _, pulses = run_up_record(pulses_per_rev=pulses_per_rev, duration_s=2.0)
+    tach_angle = np.arange(pulses.size) / pulses_per_rev
+    step = 1.0 / (samples_per_rev * shaft_ratio)
+    assert bool(_whole_points_per_piece(tach_angle, step)) is uniform_path
+    times = angle_grid_times(pulses, pulses_per_rev, samples_per_rev, shaft_ratio=shaft_ratio)
+    assert times.shape[0] >= 5
+    expected = CubicSpline(tach_angle, pulses)(np.arange(times.size) * step)
+    np.testing.assert_allclose(times.ravel(), expected, rtol=0, atol=1e-12)
