@@ -191,6 +191,22 @@ def _identifiable_modes(
     return [bool(r >= MIN_PEAK_RATIO) for r in ratio]
 
 
+def _refit_mode_on_a_peak(
+    fitter: _Fitter, evaluation: _Evaluation, theta: FloatArray, trial: list[_Accepted]
+) -> bool:
+    """Whether the last accepted mode's refitted frequency and damping still frame a peak of
+    ``evaluation``'s residual (the residual before the mode, :func:`mode_peak_ratio`): the scan
+    checks its grid point, the refit may move it anywhere."""
+    frequency_hz, damping_ratio = fitter.model_at(theta, trial)[2][-1]
+    half = evaluation.residual.size // 2
+    residual = evaluation.residual[: 2 * half]
+    chi2 = residual[:half] ** 2 + residual[half:] ** 2
+    ratio = mode_peak_ratio(
+        chi2, fitter.fm.frequency_hz[fitter.used], np.array([frequency_hz]), np.array([damping_ratio])
+    )
+    return bool(ratio[0] >= MIN_PEAK_RATIO)
+
+
 def _switched_scores(
     fitter: _Fitter,
     mechanism: Mechanism,
@@ -323,6 +339,16 @@ def _select(
             break
         fits, tie = _refit_with_rivals(fitter, scores, accepted, theta, chi2_now, scale, options)
         refit_bic, new, trial, theta_new, jac_new, eval_new = fits[0]
+        if new.mechanism.transfer_only and not _refit_mode_on_a_peak(fitter, evaluation, theta_new, trial):
+            # The refit slid the mode off every peak of this round's residual (a sharp mode
+            # beside a mesh line is a free gain on that line): a sink for misfit elsewhere, not
+            # a resonance. The round goes on without modes.
+            scored_log[-1]["mode_off_peak"] = new.candidate.label
+            scores = [s for s in scores if not s.mechanism.transfer_only]
+            if not scores or scores[0].delta_bic >= options.accept_delta_bic:
+                break
+            fits, tie = _refit_with_rivals(fitter, scores, accepted, theta, chi2_now, scale, options)
+            refit_bic, new, trial, theta_new, jac_new, eval_new = fits[0]
         if refit_bic >= options.accept_delta_bic:
             break
         chi2_new = fitter.chi2(eval_new)
