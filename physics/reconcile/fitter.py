@@ -63,8 +63,7 @@ class _Fitter:
         self.spec = spectrum
         self.target = target
         self.used = spectrum.used
-        self.weight = np.zeros(variance.shape)
-        self.weight[self.used] = 1.0 / np.sqrt(variance[self.used] / 2.0)
+        self.set_variance(variance)
         self.options = options
         self.base_model = model
         self.setup = ForwardSetup(
@@ -211,6 +210,11 @@ class _Fitter:
         return _Evaluation(
             self.whiten(self.target - prediction), gains, prediction, columns, model, self.gain_residual(gains)
         )
+
+    def set_variance(self, variance: FloatArray) -> None:
+        """The per-bin variance the residual is whitened by (χ² = Σ 2|r|²/v over the used bins)."""
+        self.weight = np.zeros(variance.shape)
+        self.weight[self.used] = 1.0 / np.sqrt(variance[self.used] / 2.0)
 
     def whiten(self, values: ComplexArray) -> FloatArray:
         u = self.used

@@ -53,6 +53,11 @@ from physics.reconcile.catalogue import (
     CATALOGUE,
     NOT_SCANNED_BY_DEFAULT,
 )
+from physics.reconcile.discrepancy import (
+    base_line_misfit,
+    line_form_error_statement,
+    with_line_misfit,
+)
 from physics.reconcile.fitter import (
     _calibration_json,
     _covariance,
@@ -157,9 +162,19 @@ def _reconcile(
     ticker.enter("calibration", 0.0, 1.0, 0)
     t1 = time.perf_counter()
     theta, jacobian, evaluation = fitter.fit([])
+    line_misfit = 0.0
+    if options.declare_line_misfit:
+        line_misfit = _declared_line_misfit(fitter, theta, jacobian, evaluation, target, variance, options)
+        if line_misfit > 0:
+            # the mesh model's form error is declared on its own lines, and the base is
+            # calibrated again under it (the first calibration bent itself to fit those lines)
+            variance = with_line_misfit(variance, evaluation.prediction, line_misfit)
+            fitter.set_variance(variance)
+            theta, jacobian, evaluation = fitter.fit([], theta)
     timings["base_calibration"] = time.perf_counter() - t1
     base = _Base(
-        evaluation, fitter.chi2(evaluation), fitter.dof(evaluation, []), target - evaluation.prediction
+        evaluation, fitter.chi2(evaluation), fitter.dof(evaluation, []), target - evaluation.prediction,
+        line_misfit,
     )
     # 2. Locate.
     located = _locate(fitter, base, variance, model, options, against)
@@ -175,6 +190,35 @@ def _reconcile(
     )
     own.report("done", 1.0)
     return result
+
+
+def _declared_line_misfit(
+    fitter: _Fitter,
+    theta: FloatArray,
+    jacobian: FloatArray,
+    evaluation: _Evaluation,
+    target: ComplexArray,
+    variance: FloatArray,
+    options: ReconcileOptions,
+) -> float:
+    """η (:mod:`physics.reconcile.discrepancy`) of the calibrated base, or 0 when one refitted
+    structural mode brings the lines to their noise: a resonance the configuration lacks moves
+    most lines, and the base calibrated without it bends to spread that misfit over all of them
+    (the housing mode of ``tests/physics/reconcile/test_method.py``: η 0.9 at the base, none once
+    the mode is fitted), which is a finding to make, not form error to declare."""
+    eta = base_line_misfit(fitter, theta, evaluation, target, variance)
+    if eta == 0.0 or "structural_mode" not in options.mechanisms:
+        return eta
+    everything = fitter.options
+    modes_only = dataclasses.replace(options, mechanisms=("structural_mode",), max_findings=1)
+    fitter.options = modes_only
+    try:
+        trial = _select(fitter, theta, jacobian, evaluation, fitter.chi2(evaluation), modes_only)
+    finally:
+        fitter.options = everything
+    if not trial.accepted:
+        return eta
+    return base_line_misfit(fitter, trial.theta, trial.evaluation, target, variance, trial.accepted)
 
 
 @dataclass
@@ -249,6 +293,8 @@ class _Base:
     chi2: float
     dof: int
     residual: ComplexArray
+    line_misfit: float = 0.0
+    """η of :mod:`physics.reconcile.discrepancy` (0: the mesh lines fit to their noise)."""
 
 
 def _locate(
@@ -325,6 +371,11 @@ def _result(
     chi2_dof_final = chi2_now / dof_final
     tolerance = 3 * math.sqrt(2 / dof_final)
     status = honesty_status(chi2_dof_final, dof_final, len(accepted))
+    if base.line_misfit > 0 and status == "explained":
+        # χ² is within its bounds only because the mesh lines' form error was declared as
+        # noise: the lines themselves are not explained (an out-of-catalogue support change
+        # must not pass as a match)
+        status = "partly_explained" if accepted else "not_explained"
     within = status == "explained"
     excess_base = chi2_base - dof_base
     excess_explained = (chi2_base - chi2_now) / excess_base if excess_base > 0 else 1.0
@@ -365,6 +416,8 @@ def _result(
         defect["finding_index"] = keep.index(defect["finding_index"])
     final_findings = [final_findings[i] for i in keep]
     model_form["not_separable_here"] = _not_separable(fitter, options)
+    if base.line_misfit > 0:
+        model_form["mesh_line_form_error"] = line_form_error_statement(base.line_misfit)
     signal_energy = float(np.sum(np.abs(target[spec.used]) ** 2))
     baseline = {
         "mechanisms": _configured_mechanisms(model),
@@ -372,6 +425,7 @@ def _result(
         "misfit": _round(float(np.sum(np.abs(base_residual[spec.used]) ** 2)) / signal_energy),
         "dof": dof_base,
         "calibrated": _calibration_json(fitter, theta[: len(fitter.nuisance)], base_eval.gains),
+        "mesh_line_form_error": _round(base.line_misfit),
     }
     final = {
         "chi2_dof": _round(chi2_dof_final),

@@ -304,6 +304,9 @@ def conclusion(data: dict[str, Any]) -> str:
     >>> conclusion({"status": "explained", "findings": [f], "final": {"chi2_dof": 1.0},
     ...             "model_form": {}})
     'Explained: pinion eccentricity 2.1 µm (1.8–2.4) on the pinion; nothing left.'
+    >>> conclusion({"status": "not_explained", "findings": [], "final": {"chi2_dof": 1.22},
+    ...             "model_form": {"mesh_line_form_error": {"relative_rms": 0.45}}})
+    "Not explained: no catalogue mechanism accounts for the mismatch (χ²/dof 1.22 left); the mesh model misses this record's mesh lines by 45%."
     """
     status = str(data.get("status", ""))
     head = STATUS_WORDS.get(status, status.replace("_", " ").capitalize() or "Unknown")
@@ -316,6 +319,9 @@ def conclusion(data: dict[str, Any]) -> str:
     expected = f", expected {fmt(bounds[0])}–{fmt(bounds[1])}" if bounds and len(bounds) == 2 else ""
     where = _remaining_where(final)
     rest = f"; most of the rest in {where}" if where else ""
+    form_error = (model_form.get("mesh_line_form_error") or {}).get("relative_rms")
+    if form_error:
+        rest += f"; the mesh model misses this record's mesh lines by {form_error:.0%}"
     if status == "explained":
         what = "; ".join(describe_finding(f) for f in findings[:3]) or "the calibrated base model already matches the recording"
         return f"{head}: {what}; nothing left."

@@ -83,6 +83,10 @@ class ReconcileOptions:
     for a sensor off the line of action, whose signal is ∝ friction (or support coupling)
     times the gain: the two are not separable from the data, the configuration's gain is."""
     gain_tolerance: float = 0.3
+    declare_line_misfit: bool = True
+    """Measure the base's relative misfit on its own mesh lines (the mesh model's form error on
+    a foreign recording) and add it to those lines' variance before any mechanism is scanned
+    (:mod:`physics.reconcile.discrepancy`); 0 on a record the model fits to its noise."""
     friction_on_line_of_action: bool = False
     """Scan ``sliding_friction`` on a line-of-action sensor too. Off by default: there friction
     shows only as mesh-harmonic content, which also absorbs model-form error (controls with a
