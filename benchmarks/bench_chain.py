@@ -29,6 +29,14 @@ Both sides are the best of ``--repeat`` fresh processes (the reference used to r
 ``repeat // 2`` times, once at ``--repeat 3``: its CPU time scatters from 2.7 to 4.6 s between
 single runs, mostly BLAS threads of its spline solve competing for the 2 cores).
 
+Measured 2026-11-27, sixth session, after the phase model became one product over shared
+powers of the in-piece angle (:func:`dsp.splines.piecewise_cubic_uniform`; 0.133 → 0.023 s for
+the 6.4 M grid points of this record, in one process). Same machine, ``--repeat 5``, three runs
+within an hour: before the change 0.691 CPU s against the reference's 1.996 (2.9×); after it
+0.610 against 1.949 (3.2×), and later, the machine slower (``python -c pass`` 0.022 s instead of
+0.017), 0.770 against 3.042 (3.9×) and 0.751 against 3.044 (4.1×) — the reference's CPU time
+moves more than ours between runs. The ≥ 5× is not reached.
+
 Measured 2026-11-27, second session, on an **idle** 2-core machine (``--whole-process --seconds 300
 --repeat 5``; the reference's best-of-5 CPU ranged 1.58–1.85 s over two runs)::
 

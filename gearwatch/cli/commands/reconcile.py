@@ -128,6 +128,10 @@ def print_summary(data: dict[str, Any]) -> None:
         f"(bounds {final['chi2_dof_bounds'][0]}..{final['chi2_dof_bounds'][1]}), "
         f"excess explained {final['excess_explained']}"
     )
+    form_error = base.get("mesh_line_form_error") or 0.0
+    if form_error > 0:
+        print(f"  the configured mesh model misses this record's mesh lines by {form_error:.0%} "
+              "(declared as their uncertainty; see model_form.mesh_line_form_error)")
     for m in data["mismatches"]:
         print(f"  mismatch {json.dumps(m)}")
     for f in data["findings"]:

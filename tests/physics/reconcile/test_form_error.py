@@ -100,3 +100,18 @@ def test_foreign_strong_spall_is_named_on_its_tooth_first() -> None:
     assert row["right_place_first"] is True, row
     assert data["baseline"]["mesh_line_form_error"] > MIN_DECLARED
     assert data["status"] != "explained"
+
+
+def test_cli_summary_says_by_how_much_the_lines_are_missed(capsys: pytest.CaptureFixture[str]) -> None:
+    from gearwatch.cli.commands.reconcile import print_summary
+
+    data: dict[str, Any] = {
+        "status": "not_explained", "mismatches": [], "findings": [], "unresolved": [],
+        "baseline": {"chi2_dof": 1.22, "mesh_line_form_error": 0.4486},
+        "final": {"chi2_dof": 1.22, "chi2_dof_bounds": [0.96, 1.04], "excess_explained": 0.0},
+    }
+    print_summary(data)
+    assert "misses this record's mesh lines by 45%" in capsys.readouterr().out
+    data["baseline"]["mesh_line_form_error"] = 0.0
+    print_summary(data)
+    assert "mesh lines" not in capsys.readouterr().out
