@@ -45,10 +45,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from physics.reconcile.catalogue import CATALOGUE
 from physics.reconcile.fitter import _Accepted, _Evaluation, _Fitter
 from physics.reconcile.observables import order_classes
-from physics.reconcile.selection import _candidate_columns, _identifiable_modes
+from physics.reconcile.selection import _candidate_columns, _identifiable_modes, scanned_mechanisms
 
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
@@ -113,33 +112,28 @@ def base_line_misfit(
     variance: FloatArray,
     accepted: list[_Accepted] | None = None,
 ) -> float:
-    """η of a calibrated base (with its ``accepted`` findings) (:func:`relative_line_misfit` on its mesh lines), after removing
-    the least-squares part of its residual along the scanned :data:`LINE_MECHANISMS` and the
-    best identifiable structural mode."""
+    """η of a calibrated base with its ``accepted`` findings (:func:`relative_line_misfit` on
+    its mesh lines), after removing the least-squares part of its residual along the scanned
+    :data:`LINE_MECHANISMS` and the best identifiable structural mode."""
     spec = fitter.spec
+    accepted = accepted or []
     residual = target - evaluation.prediction
     whitened = fitter.whiten(residual)
+    scanned = fitter.options.mechanisms
     columns: list[ComplexArray] = []
-    for name in LINE_MECHANISMS:
-        mechanism = CATALOGUE.get(name)
-        if mechanism is None or name not in fitter.options.mechanisms:
-            continue
-        if mechanism.off_line_only and not (fitter.off_line or fitter.options.friction_on_line_of_action):
-            continue
-        for _candidate, cols, _refs in _candidate_columns(fitter, mechanism, theta, accepted or [], evaluation):
+    for mechanism in scanned_mechanisms(fitter, tuple(n for n in LINE_MECHANISMS if n in scanned)):
+        for _candidate, cols, _refs in _candidate_columns(fitter, mechanism, theta, accepted, evaluation):
             columns.extend(cols)
-    mode = CATALOGUE.get("structural_mode")
-    if mode is not None and "structural_mode" in fitter.options.mechanisms:
-        items = _candidate_columns(fitter, mode, theta, accepted or [], evaluation)
+    for mode in scanned_mechanisms(fitter, ("structural_mode",) if "structural_mode" in scanned else ()):
+        items = _candidate_columns(fitter, mode, theta, accepted, evaluation)
         items = [it for it, ok in zip(items, _identifiable_modes(fitter, evaluation, items), strict=True) if ok]
         best, best_gain = None, 0.0
         for _candidate, cols, _refs in items:
             d = fitter.whiten(cols[0])
             norm = float(d @ d)
-            if norm > 0:
-                gain = float(d @ whitened) ** 2 / norm
-                if gain > best_gain:
-                    best, best_gain = cols[0], gain
+            gain = float(d @ whitened) ** 2 / norm if norm > 0 else 0.0
+            if gain > best_gain:
+                best, best_gain = cols[0], gain
         if best is not None:
             columns.append(best)
     if columns:

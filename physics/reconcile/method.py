@@ -209,13 +209,8 @@ def _declared_line_misfit(
     eta = base_line_misfit(fitter, theta, evaluation, target, variance)
     if eta == 0.0 or "structural_mode" not in options.mechanisms:
         return eta
-    everything = fitter.options
     modes_only = dataclasses.replace(options, mechanisms=("structural_mode",), max_findings=1)
-    fitter.options = modes_only
-    try:
-        trial = _select(fitter, theta, jacobian, evaluation, fitter.chi2(evaluation), modes_only)
-    finally:
-        fitter.options = everything
+    trial = _select(fitter, theta, jacobian, evaluation, fitter.chi2(evaluation), modes_only)
     if not trial.accepted:
         return eta
     return base_line_misfit(fitter, trial.theta, trial.evaluation, target, variance, trial.accepted)

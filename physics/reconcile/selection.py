@@ -116,6 +116,20 @@ class _Score:
     n_scan: int
 
 
+def scanned_mechanisms(fitter: _Fitter, names: tuple[str, ...]) -> list[Mechanism]:
+    """The catalogue mechanisms among ``names`` that this sensor lets a scan try (friction-only
+    mechanisms need a sensor off the line of action, or the option that asks for them)."""
+    out = []
+    for name in names:
+        mechanism = CATALOGUE.get(name)
+        if mechanism is None:
+            continue
+        if mechanism.off_line_only and not (fitter.off_line or fitter.options.friction_on_line_of_action):
+            continue
+        out.append(mechanism)
+    return out
+
+
 def _score_all(
     fitter: _Fitter,
     theta: FloatArray,
@@ -123,6 +137,7 @@ def _score_all(
     accepted: list[_Accepted],
     evaluation: _Evaluation,
     chi2_scale: float,
+    mechanisms: tuple[str, ...],
 ) -> list[_Score]:
     residual = evaluation.residual
     n = fitter.n_rows
@@ -135,12 +150,7 @@ def _score_all(
     r_perp = residual - q @ (q.T @ residual)
     scores: list[_Score] = []
     taken = {(a.candidate.mechanism, a.candidate.wheel, a.candidate.tooth) for a in accepted}
-    for name in fitter.options.mechanisms:
-        mechanism = CATALOGUE.get(name)
-        if mechanism is None:
-            continue
-        if mechanism.off_line_only and not (fitter.off_line or fitter.options.friction_on_line_of_action):
-            continue
+    for mechanism in scanned_mechanisms(fitter, mechanisms):
         if not mechanism.steps:
             scores.extend(_switched_scores(fitter, mechanism, theta, accepted, evaluation, chi2_scale))
             continue
@@ -322,7 +332,7 @@ def _select(
     for _round_index in range(options.max_findings):
         dof_now = fitter.dof(evaluation, accepted)
         scale = max(1.0, chi2_now / dof_now)
-        scores = _score_all(fitter, theta, jacobian, accepted, evaluation, scale)
+        scores = _score_all(fitter, theta, jacobian, accepted, evaluation, scale, options.mechanisms)
         if not scores:
             break
         best = scores[0]
