@@ -373,6 +373,10 @@ def _alignment_json(alignment: Any) -> dict[str, Any]:
         "runner_up": round(float(alignment.runner_up), 4),
         "margin": round(float(alignment.margin), 4),
         "separation_z": round(float(alignment.separation_z), 2),
+        # the per-tooth energy pattern's support for the shift (dsp.toothframe.sector_pattern_z)
+        # and whether the shift needed it (accepted below 3.5 standard errors)
+        "sector_pattern_z": round(float(alignment.sector_pattern_z), 2),
+        "confirmed_by_sector_pattern": bool(alignment.confirmed_by_sector_pattern),
     }
 
 

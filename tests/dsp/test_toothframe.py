@@ -6,13 +6,17 @@ import numpy as np
 import pytest
 
 from dsp.toothframe import (
+    MIN_CONFIRMED_SEPARATION_Z,
+    MIN_SECTOR_PATTERN_Z,
     MIN_SEPARATION_Z,
     align_fingerprint,
     circular_shift,
     frame_delay_samples,
     mesh_phase_position,
     resample_periodic,
+    sector_pattern_z,
     shift_separation_z,
+    tooth_energy_pattern,
     tooth_fingerprint,
 )
 
@@ -110,6 +114,59 @@ def test_a_smooth_pattern_in_heavy_noise_is_refused_not_guessed() -> None:
         record = circular_shift(smooth_average(seed=seed, noise=1.5, teeth=teeth), 23 * SPM)
         alignment = align_fingerprint(tooth_fingerprint(record, teeth), tooth_fingerprint(reference, teeth), teeth)
         assert alignment.shift_teeth is None and alignment.refusal, (seed, alignment)
+
+
+def dispersed_day(seed: int, shift_teeth: int, phase_turn_rad: float, noise: float, teeth: int = 41) -> np.ndarray:
+    """A wheel whose teeth deviate by very different amounts (log-normal), seen through a path
+    whose phase turns with the square of the order by ``phase_turn_rad`` at an eighth of the
+    band (another day's speed moves a resonance: the waveform inside each sector changes, how much
+    each tooth deviates does not), moved by ``shift_teeth`` + 0.3 teeth, plus noise."""
+    n_samples = teeth * SPM
+    rng = np.random.default_rng(99)
+    amplitude = rng.lognormal(0.0, 1.0, teeth)
+    wave = np.fft.rfft(rng.normal(size=n_samples))
+    wave[n_samples // 8 :] = 0.0
+    pattern = np.fft.irfft(wave, n=n_samples) * np.repeat(amplitude, SPM)
+    n = np.arange(n_samples)
+    x = np.cos(2 * np.pi * teeth * n / n_samples) + 0.5 * pattern / np.std(pattern)
+    orders = np.arange(n_samples // 2 + 1)
+    x = np.fft.irfft(np.fft.rfft(x) * np.exp(1j * phase_turn_rad * (orders / (n_samples / 8)) ** 2), n=n_samples)
+    x = circular_shift(x, (shift_teeth + 0.3) * SPM)
+    return x + noise * np.random.default_rng(seed).standard_normal(n_samples)
+
+
+def test_a_path_that_turns_the_phase_is_placed_when_the_tooth_energy_pattern_confirms() -> None:
+    # the waveform match falls below 3.5 standard errors (the candidate is still the right
+    # shift); the per-tooth energy pattern points to the same shift, and that accepts it
+    teeth = 41
+    reference = tooth_fingerprint(dispersed_day(1, 0, 0.0, 0.05), teeth)
+    accepted = 0
+    for seed in range(2, 8):
+        record = tooth_fingerprint(dispersed_day(seed, 17, 12.0, 0.3), teeth)
+        alignment = align_fingerprint(record, reference, teeth)
+        assert alignment.candidate_teeth == 17 and alignment.separation_z < MIN_SEPARATION_Z
+        strict = align_fingerprint(record, reference, teeth, min_sector_pattern_z=np.inf)
+        assert strict.shift_teeth is None and "energy pattern" in strict.refusal
+        if alignment.shift_teeth is not None:
+            accepted += 1
+            assert alignment.shift_teeth == 17 and alignment.confirmed_by_sector_pattern
+            assert alignment.separation_z >= MIN_CONFIRMED_SEPARATION_Z
+            assert alignment.sector_pattern_z >= MIN_SECTOR_PATTERN_Z
+    assert accepted >= 4  # measured: 5 of the 6 draws
+
+
+def test_the_tooth_energy_pattern_supports_the_right_shift_only() -> None:
+    teeth = 41
+    reference = tooth_fingerprint(dispersed_day(1, 0, 0.0, 0.05), teeth)
+    record = tooth_fingerprint(dispersed_day(2, 17, 0.0, 0.05), teeth)
+    delay = align_fingerprint(record, reference, teeth).delay_samples
+    assert sector_pattern_z(record, reference, teeth, delay, 17) > 4
+    for wrong in (16, 18, 3):
+        assert sector_pattern_z(record, reference, teeth, delay + (wrong - 17) * SPM, wrong) == 0.0
+    # a wheel whose teeth all deviate alike has no pattern: it confirms nothing
+    flat = np.tile(np.sin(2 * np.pi * np.arange(SPM) / SPM), teeth)
+    assert not np.any(tooth_energy_pattern(flat, teeth))
+    assert sector_pattern_z(flat, flat, teeth, 0, 0) == 0.0
 
 
 def test_separation_of_a_perfect_fit_is_large_and_of_noise_small() -> None:
