@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "COMB_CAP_NP",
     "COMB_THRESHOLD_NP",
+    "DB_PER_NEPER",
     "MIN_LINE_PROMINENCE_DB",
     "TachlessError",
     "estimate_mesh_order",
@@ -34,6 +35,8 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
+DB_PER_NEPER = 20.0 / math.log(10.0)
+"""Decibels in one neper of amplitude: line prominences are natural-log amplitude ratios."""
 MIN_LINE_PROMINENCE_DB = 15.0
 """A mesh line must stand this far above the local median of the amplitude spectrum."""
 COMB_THRESHOLD_NP = math.log(3.0)
@@ -440,7 +443,7 @@ def mesh_line_hz(
     lo = int(expected_hz * (1 - search_fraction) / bin_hz)
     hi = math.ceil(expected_hz * (1 + search_fraction) / bin_hz)
     peaks = _peak_bins(prominence, lo, hi, 1)
-    prominence_db = float(20.0 / math.log(10.0) * prominence[peaks[0]]) if peaks.size else -math.inf
+    prominence_db = float(DB_PER_NEPER * prominence[peaks[0]]) if peaks.size else -math.inf
     if prominence_db < MIN_LINE_PROMINENCE_DB:
         raise TachlessError(
             f"no mesh line near {expected_hz:.6g} Hz (harmonic {harmonic} of order {mesh_order}): "

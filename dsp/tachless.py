@@ -59,6 +59,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from dsp.meshspectrum import (
     COMB_CAP_NP,
+    DB_PER_NEPER,
     MIN_LINE_PROMINENCE_DB,
     TachlessError,
     _checked_signal,
@@ -618,7 +619,7 @@ def dechirped_prominence_db(signal: ArrayLike, ridge_cycles: ArrayLike) -> float
     half = max(50, int(0.005 * x.size))
     floor = float(np.median(log_amplitude[max(0, centre - half) : centre + half + 1]))
     peak = float(log_amplitude[centre - 2 : centre + 3].max())
-    return 20.0 / math.log(10.0) * (peak - floor)
+    return DB_PER_NEPER * (peak - floor)
 
 
 def mesh_ridge_cycles(

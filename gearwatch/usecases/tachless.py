@@ -31,6 +31,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from dsp.meshspectrum import DB_PER_NEPER
 from dsp.tach import TachAnalysis, TachometerError, analyze_tachometer
 from dsp.tachless import (
     MIN_LINE_PROMINENCE_DB,
@@ -136,7 +137,7 @@ def _best_line(
     record's comb can settle anywhere in the ±``search`` window."""
     prominence, freq = line_prominence(x, sample_rate_hz)
     bin_hz = float(freq[1])
-    standing_np = MIN_LINE_PROMINENCE_DB / (20.0 / math.log(10.0))
+    standing_np = MIN_LINE_PROMINENCE_DB / DB_PER_NEPER
     best: tuple[float, float, float, list[int]] | None = None
     for candidate_hz in candidates:
         comb_hz = comb_speed_hz(prominence, freq, pinion_teeth, candidate_hz, search_fraction=search)
