@@ -49,6 +49,44 @@ class RecordRow:
     code_version: str
     parameters_sha256: str
     mci_form: str
+    angle: str = "tach"
+    """Where the shaft angle came from and, without a tach, which tooth frame the record's
+    tooth numbers are in (:func:`angle_and_frame`)."""
+
+
+def angle_and_frame(quality: dict[str, Any]) -> str:
+    """One line for the report: the record's shaft angle and tooth frame (issue 11).
+
+    The dashboard says the same (``frameText`` in ``service/static/dashboard.js``).
+
+    Examples
+    --------
+    >>> angle_and_frame({"angle_source": "tachometer"})
+    'tach'
+    >>> angle_and_frame({"angle_source": "mesh_phase", "tooth_frames": {"a1": {"kind": "campaign",
+    ...     "reference_frame": "mesh_phase", "pinion": {"separation_z": 2.04,
+    ...     "confirmed_by_sector_pattern": True}}}})
+    "mesh phase; campaign's tach-less frame (2.0 SE + tooth energy pattern)"
+    """
+    source = quality.get("angle_source", "tachometer")
+    if source == "none":
+        return "no angle: whole-record metrics only"
+    if source != "mesh_phase":
+        return "tach"
+    frames = quality.get("tooth_frames") or {}
+    frame: dict[str, Any] = next(iter(frames.values()), {}) if isinstance(frames, dict) else {}
+    kind = frame.get("kind")
+    if kind == "refused":
+        return "mesh phase; tooth frame refused: no per-tooth values"
+    if kind == "own":
+        return "mesh phase; the record's own frame"
+    anchor = "tach days' numbering" if frame.get("reference_frame") == "tachometer" else "campaign's tach-less frame"
+    if frame.get("founds_reference"):
+        return f"mesh phase; {anchor} (founds it)"
+    pinion = frame.get("pinion") or {}
+    z = pinion.get("separation_z")
+    support = " + tooth energy pattern" if pinion.get("confirmed_by_sector_pattern") else ""
+    return f"mesh phase; {anchor}" + (f" ({float(z):.1f} SE{support})" if isinstance(z, int | float) else "")
 
 
 @dataclass
@@ -120,6 +158,11 @@ class ReportData:
     def rejected(self) -> int:
         return sum(r.status == "rejected" for r in self.records)
 
+    @property
+    def mesh_phase_records(self) -> int:
+        """Accepted records whose shaft angle came from the mesh phase (no tach)."""
+        return sum(r.angle.startswith("mesh phase") for r in self.records)
+
 
 def record_name(label: str, taken_at: dt.datetime) -> str:
     return f"{label or '(no label)'} — {taken_at:%Y-%m-%d %H:%M}"
@@ -166,6 +209,7 @@ def collect(session: Any, rig_name: str) -> ReportData:
                 code_version=result.code_version if result else "",
                 parameters_sha256=result.parameters_sha256 if result else "",
                 mci_form=str((result.parameters or {}).get("mci_form", "")) if result else "",
+                angle=angle_and_frame(quality) if record.status == "accepted" else "—",
             )
         )
     by_id = {r.record_id: r for r in rows}
@@ -520,12 +564,12 @@ def write_pdf(data: ReportData, out: Path) -> None:
         _table_pages(
             pdf, "Data quality per record",
             ["record", "campaign", "status", "speed (rpm)", "speed var.", "tach repairs",
-             "quality", "reason"],
+             "quality", "angle / tooth frame", "reason"],
             [[record_name(r.label, r.taken_at), r.campaign, r.status, _num(r.speed_rpm, 5),
               "—" if r.speed_variation is None else f"{100 * r.speed_variation:.2f} %",
               "—" if r.tach_repairs is None else str(r.tach_repairs), _num(r.quality_score),
-              r.reason[:60]] for r in data.records],
-            [0.2, 0.12, 0.08, 0.08, 0.08, 0.08, 0.06, 0.3],
+              r.angle[:44], r.reason[:44]] for r in data.records],
+            [0.18, 0.1, 0.07, 0.07, 0.07, 0.06, 0.06, 0.2, 0.19],
         )
         _table_pages(
             pdf, "Provenance: raw file, code and parameters of every stored value",

@@ -5,6 +5,7 @@ and whole-record raw metrics kept when no angle can be had."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -228,6 +229,15 @@ def test_a_tachless_campaign_replays_every_record_accepted_and_alarms_the_spall_
         metrics = {m.metric for m in RecordRepository(session).metrics(
             RecordRepository(session).current_result(records[-1].id).id)}
         assert {"raw_rms", "raw_kurtosis", "kurtosis"} <= metrics
+        # the report a test engineer hands on says where the angle and the tooth numbers came from
+        from gearwatch.usecases.report import collect, render_html
+
+        report = collect(session, "rig-only")
+        assert report.mesh_phase_records == 11
+        assert report.records[0].angle == "mesh phase; campaign's tach-less frame (founds it)"
+        assert all(re.fullmatch(r"mesh phase; campaign's tach-less frame \(\d+\.\d SE.*\)", r.angle)
+                   for r in report.records[1:]), [r.angle for r in report.records]
+        assert "11 record(s) without a tachometer" in render_html(report)
 
 
 def test_a_mixed_campaign_keeps_the_tach_frame_on_the_days_the_tach_is_dead(
