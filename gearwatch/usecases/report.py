@@ -67,6 +67,9 @@ def angle_and_frame(quality: dict[str, Any]) -> str:
     ...     "reference_frame": "mesh_phase", "pinion": {"separation_z": 2.04,
     ...     "confirmed_by_sector_pattern": True}}}})
     "mesh phase; campaign's tach-less frame (2.0 SE + tooth energy pattern)"
+    >>> angle_and_frame({"angle_source": "mesh_phase", "tooth_frames": {
+    ...     "a1": {"kind": "refused"}, "a2": {"kind": "campaign", "reference_frame": "mesh_phase"}}})
+    "mesh phase; campaign's tach-less frame on 1 of 2 channels (not on a1)"
     """
     source = quality.get("angle_source", "tachometer")
     if source == "none":
@@ -74,7 +77,18 @@ def angle_and_frame(quality: dict[str, Any]) -> str:
     if source != "mesh_phase":
         return "tach"
     frames = quality.get("tooth_frames") or {}
-    frame: dict[str, Any] = next(iter(frames.values()), {}) if isinstance(frames, dict) else {}
+    if not isinstance(frames, dict):
+        frames = {}
+    if len(frames) > 1:  # several accelerometers: each channel is framed on its own
+        aligned = [name for name, f in frames.items() if f.get("kind") == "campaign"]
+        refused = [name for name, f in frames.items() if f.get("kind") != "campaign"]
+        anchor = ("tach days' numbering" if any(frames[n].get("reference_frame") == "tachometer" for n in aligned)
+                  else "campaign's tach-less frame")
+        if aligned and all(frames[n].get("founds_reference") for n in aligned):
+            return f"mesh phase; {anchor} (founds it on {len(aligned)} of {len(frames)} channels)"
+        return (f"mesh phase; {anchor} on {len(aligned)} of {len(frames)} channels"
+                + (f" (not on {', '.join(refused)})" if refused else ""))
+    frame: dict[str, Any] = next(iter(frames.values()), {})
     kind = frame.get("kind")
     if kind == "refused":
         return "mesh phase; tooth frame refused: no per-tooth values"
