@@ -127,7 +127,17 @@ function sparkline(canvas, values) {
 function frameText(q) {
   if (q.angle_source === "none") return "no shaft angle: whole-record metrics only";
   if (q.angle_source !== "mesh_phase") return "";
-  const f = Object.values(q.tooth_frames || {})[0] || {};
+  const frames = q.tooth_frames || {};
+  const names = Object.keys(frames);
+  if (names.length > 1) {  // each accelerometer is framed on its own (the report says the same)
+    const aligned = names.filter((n) => frames[n].kind === "campaign");
+    const others = names.filter((n) => frames[n].kind !== "campaign");
+    const anchored = aligned.some((n) => frames[n].reference_frame === "tachometer")
+      ? "the tach days' numbering" : "the campaign's tach-less frame";
+    const not = others.length ? ` (not on ${others.join(", ")})` : "";
+    return `angle from the mesh phase; teeth in ${anchored} on ${aligned.length} of ${names.length} channels${not}`;
+  }
+  const f = frames[names[0]] || {};
   if (f.kind === "refused") return "angle from the mesh phase; tooth numbers refused (frame not found)";
   if (f.kind === "own") return "angle from the mesh phase; tooth numbers in the record's own frame";
   const anchor = f.reference_frame === "tachometer" ? "the tach days' numbering" : "the campaign's tach-less frame";

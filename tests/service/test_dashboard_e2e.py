@@ -9,6 +9,7 @@ CI (``CI`` set).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import re
 import shutil
@@ -94,6 +95,20 @@ def _seed_other_rigs(factory: Any) -> None:
             result_analysis = analysis(sha256=sha, teeth=0)
             records.mark_accepted(record, result_analysis)
             records.add_result(record, result_analysis)
+        # a rig without a tach, two accelerometers: one framed in the campaign, one refused
+        tachless = CampaignRepository(session).ensure(campaign_config("camp-t", "rig-t"))
+        sha = b"t0".hex().ljust(64, "0")
+        record = records.add(tachless, sha256=sha, file_name="t0.wav", raw_location="/nonexistent",
+                             taken_at=t0, label="no tach")
+        result_analysis = analysis(sha256=sha, channels=("a1", "a2"))
+        result_analysis = dataclasses.replace(result_analysis, quality=dataclasses.replace(
+            result_analysis.quality, angle_source="mesh_phase", tooth_frames={
+                "a1": {"kind": "refused", "reason": "tooth frame refused: ambiguous tooth frame"},
+                "a2": {"kind": "campaign", "reference_frame": "mesh_phase",
+                       "pinion": {"separation_z": 2.1, "confirmed_by_sector_pattern": True}},
+            }))
+        records.mark_accepted(record, result_analysis)
+        records.add_result(record, result_analysis)
 
 
 @pytest.fixture(scope="module")
@@ -192,7 +207,7 @@ def test_opening_shows_every_rig_and_the_spalled_tooth_with_units_and_dates(
 ) -> None:
     rows = page.locator("#overview tbody tr")
     assert sorted(rows.nth(i).get_attribute("data-rig") for i in range(rows.count())) == sorted(
-        [site.sim_rig, "rig-a", "rig-k", "rig-w"]
+        [site.sim_rig, "rig-a", "rig-k", "rig-t", "rig-w"]
     )
     sim = page.locator(f"#overview tbody tr[data-rig='{site.sim_rig}']").inner_text()
     assert f"tooth {SPALL_TOOTH}" in sim and "alarm" in sim and "day 12" in sim
@@ -326,3 +341,11 @@ def test_a_rig_without_tooth_counts_shows_its_whole_record_indicators_not_the_pr
     # every record has the same value here: said so, not drawn as a dark-to-yellow range
     assert "every value is" in page.inner_text("#heatmap-legend")
     assert page.locator("#alarms tbody tr[data-alarm-id]").count() == 0
+
+
+def test_a_tachless_rig_says_on_which_channels_its_tooth_numbers_hold(page: Any, site: Site) -> None:
+    # one accelerometer framed in the campaign, the other refused: the first channel alone
+    # ("refused") would hide that the second one's tooth numbers hold
+    row = page.locator("#overview tbody tr[data-rig='rig-t']").inner_text()
+    assert ("angle from the mesh phase; teeth in the campaign's tach-less frame on 1 of 2 "
+            "channels (not on a1)") in row
