@@ -86,7 +86,9 @@ that phase. Measured on the development dumps (seeds 1000–1019, both generator
 days aligned on the physics set and 53 → 53–63 on the independent one, none wrong, at thresholds
 1.0–2.0 / 2.0–3.0; 1.5 / 2.5 is the middle of that range, not its best (with the lead of
 :data:`SECTOR_PATTERN_LEAD`: 89 and 57). Held-out (seeds 9300–9319): 58 → 70 of 140 physics
-days and 63 → 67 of 141 indep days, none wrong by the tach's angle (docs/tachless.md)."""
+days, none wrong by the tach's angle (docs/tachless.md). The caller withholds the confirmation
+from an angle read along a sweeping speed (``no_confirmation_reason``): there it added wrong
+days (docs/tachless.md)."""
 MIN_SECTOR_PATTERN_Z = 2.5
 """The per-tooth energy pattern's correlation at the confirmed shift, in standard deviations of
 its correlations at the other whole-tooth shifts (:func:`sector_pattern_z`)."""
@@ -261,6 +263,7 @@ def align_fingerprint(
     min_separation_z: float = MIN_SEPARATION_Z,
     min_confirmed_separation_z: float = MIN_CONFIRMED_SEPARATION_Z,
     min_sector_pattern_z: float = MIN_SECTOR_PATTERN_Z,
+    no_confirmation_reason: str = "",
 ) -> FrameAlignment:
     """Whole-tooth shift that lines a record's fingerprint up with the reference's.
 
@@ -274,7 +277,9 @@ def align_fingerprint(
     (:func:`shift_separation_z`; ambiguous: two teeth look alike, or the noise hides which) —
     unless it leads by ``min_confirmed_separation_z`` and the per-tooth energy pattern puts its
     own best shift at the same one, ``min_sector_pattern_z`` or more above the others
-    (:func:`sector_pattern_z`; :data:`MIN_CONFIRMED_SEPARATION_Z` says why). The
+    (:func:`sector_pattern_z`; :data:`MIN_CONFIRMED_SEPARATION_Z` says why) and no
+    ``no_confirmation_reason`` is given (the caller's reason not to lower the bar, e.g. a
+    shaft angle read along a sweeping speed, which wanders by fractions of a tooth). The
     correlation margin over the runner-up is reported, not used: a smooth pattern (runout)
     correlates almost as well one tooth away, yet the orders that tell the two shifts apart may
     be well above the noise.
@@ -317,16 +322,21 @@ def align_fingerprint(
             f"(shift {best} teeth) < {min_correlation:.2f}",
             delay_samples=int(delay), separation_z=z, candidate_teeth=best, sector_pattern_z=sector_z,
         )
-    confirmed = z >= min_confirmed_separation_z and sector_z >= min_sector_pattern_z
+    confirmed = (not no_confirmation_reason and z >= min_confirmed_separation_z
+                 and sector_z >= min_sector_pattern_z)
     if z < min_separation_z and not confirmed:
         closest = others[int(np.argmin(separations))]
+        other_rule = (
+            f"no confirmation by the per-tooth energy pattern: {no_confirmation_reason}"
+            if no_confirmation_reason
+            else f"or < {min_confirmed_separation_z:g} with the per-tooth energy pattern's "
+            f"confirmation, which stands at {sector_z:.1f} < {min_sector_pattern_z:g}"
+        )
         return FrameAlignment(
             None, correlation, runner_up, margin,
             f"ambiguous tooth frame: shift {best} teeth (correlation {correlation:.2f}) leads shift "
-            f"{closest} by only {z:.1f} standard errors (< {min_separation_z:g}, or "
-            f"< {min_confirmed_separation_z:g} with the per-tooth energy pattern's confirmation, "
-            f"which stands at {sector_z:.1f} < {min_sector_pattern_z:g}; correlation margin over "
-            f"the runner-up {margin:.2f})",
+            f"{closest} by only {z:.1f} standard errors (< {min_separation_z:g}, {other_rule}; "
+            f"correlation margin over the runner-up {margin:.2f})",
             delay_samples=int(delay), separation_z=z, candidate_teeth=best, sector_pattern_z=sector_z,
         )
     return FrameAlignment(best, correlation, runner_up, margin, delay_samples=int(delay),

@@ -74,6 +74,7 @@ from gearwatch.usecases.tachless import (
     NO_HINT_REFUSAL,
     place_in_tooth_frame,
     tach_frame_fingerprints,
+    unsteady_angle,
 )
 from gearwatch.usecases.tachless import (
     FramePlacement as _FramePlacement,
@@ -315,6 +316,7 @@ def _analyzed_channels(
                     record_sha256=input_sha256,
                     refusal=(NO_HINT_REFUSAL if (shaft.tachless or {}).get("speed_from") == "spectrum"
                              else ""),
+                    unsteady_angle=unsteady_angle(shaft.tachless or {}),
                 )
             ),
         )

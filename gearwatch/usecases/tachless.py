@@ -65,6 +65,7 @@ __all__ = [
     "mesh_phase_angle",
     "place_in_tooth_frame",
     "tach_frame_fingerprints",
+    "unsteady_angle",
 ]
 
 MAX_HARMONIC = 8
@@ -201,6 +202,33 @@ Candidate = tuple[float, ShaftAngleEstimate, str]
 STEADY_SPEED_VARIATION = 0.02
 """Synthetic pulses whose per-revolution speed varies by more than 2 % swept the mesh line
 across the transfer path's phase: see :func:`_chosen_estimate`."""
+
+
+def unsteady_angle(summary: Mapping[str, Any]) -> str:
+    """Why a mesh-phase angle is not steady enough for the tooth frame's second witness
+    (:data:`dsp.toothframe.MIN_CONFIRMED_SEPARATION_Z`), or ``""``.
+
+    Along a sweeping speed the angle read from a mesh harmonic wanders with the transfer path's
+    phase (:func:`_chosen_estimate`): the waveform match's doubt between neighbouring teeth is
+    then partly a real error of the angle, and the per-tooth energy pattern, read through the
+    same angle, cannot lift it. Measured (``benchmarks/bench_tachless.py --simulator indep
+    --max-drift 0.2``, seeds 9000–9019 and 9100–9119): with the confirmation on every record,
+    4 more days were wrong by the tach's angle (6 → 10 of ~120 aligned); every day it had
+    added there was such a record (speed variation 9–26 %, the line followed along the drift).
+
+    Examples
+    --------
+    >>> unsteady_angle({"speed_variation": 0.004, "line_followed_along_drift": False})
+    ''
+    >>> unsteady_angle({"speed_variation": 0.12, "line_followed_along_drift": True})
+    'the mesh line was followed along a drifting speed (12.0% within the record)'
+    """
+    variation = float(summary.get("speed_variation") or 0.0)
+    if summary.get("line_followed_along_drift"):
+        return f"the mesh line was followed along a drifting speed ({variation:.1%} within the record)"
+    if variation > STEADY_SPEED_VARIATION:
+        return f"the speed varied by {variation:.1%} within the record (steady: ≤ {STEADY_SPEED_VARIATION:.0%})"
+    return ""
 
 
 def _chosen_estimate(working: list[Candidate], followed_drift: bool) -> Candidate:
@@ -352,6 +380,9 @@ class FramePlacement:
     record_sha256: str
     refusal: str = ""
     """Non-empty: per-tooth numbers are refused before any alignment, for this reason."""
+    unsteady_angle: str = ""
+    """Non-empty (:func:`unsteady_angle`): the alignment must stand on the waveform match
+    alone, without the per-tooth energy pattern's confirmation."""
 
 
 @dataclass(frozen=True)
@@ -447,7 +478,8 @@ def place_in_tooth_frame(
     reference_canonical = circular_shift(
         resample_periodic(reference.pinion_fingerprint, pinion_average.size), -reference_position
     )
-    alignment = align_fingerprint(fingerprint, reference_canonical, pinion_teeth)
+    alignment = align_fingerprint(fingerprint, reference_canonical, pinion_teeth,
+                                  no_confirmation_reason=placement.unsteady_angle)
     frame: dict[str, Any] = {
         "reference_frame": reference.frame,
         "reference_sha256": reference.record_sha256,
@@ -467,7 +499,8 @@ def place_in_tooth_frame(
     }
     gear = own_gear
     if reference.gear_fingerprint is not None:
-        gear_alignment = align_fingerprint(gear_fingerprint, reference.gear_fingerprint, gear_teeth)
+        gear_alignment = align_fingerprint(gear_fingerprint, reference.gear_fingerprint, gear_teeth,
+                                           no_confirmation_reason=placement.unsteady_angle)
         frame["gear"] = _alignment_json(gear_alignment)
         if gear_alignment.shift_teeth is not None:
             gear = circular_shift(

@@ -153,6 +153,12 @@ def test_a_path_that_turns_the_phase_is_placed_when_the_tooth_energy_pattern_con
             assert alignment.separation_z >= MIN_CONFIRMED_SEPARATION_Z
             assert alignment.sector_pattern_z >= MIN_SECTOR_PATTERN_Z
     assert accepted >= 4  # measured: 5 of the 6 draws
+    # an angle read along a sweeping speed gets no second witness: the same records are refused
+    for seed in range(2, 8):
+        record = tooth_fingerprint(dispersed_day(seed, 17, 12.0, 0.3), teeth)
+        swept = align_fingerprint(record, reference, teeth, no_confirmation_reason="the speed swept 12 %")
+        assert swept.shift_teeth is None and not swept.confirmed_by_sector_pattern
+        assert "no confirmation by the per-tooth energy pattern: the speed swept 12 %" in swept.refusal
 
 
 def test_the_tooth_energy_pattern_supports_the_right_shift_only() -> None:
