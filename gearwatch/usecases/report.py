@@ -218,7 +218,8 @@ def collect(session: Any, rig_name: str) -> ReportData:
                 campaign=record.campaign.name, status=record.status, reason=record.reason,
                 file_name=record.file_name, sha256=record.sha256, speed_rpm=record.speed_rpm,
                 speed_variation=record.speed_variation,
-                tach_repairs=len(quality["tach_repairs"]) if "tach_repairs" in quality else None,
+                tach_repairs=(len(quality["tach_repairs"]) if "tach_repairs" in quality
+                              and quality.get("angle_source", "tachometer") == "tachometer" else None),
                 quality_score=float(score) if isinstance(score, int | float) else None,
                 code_version=result.code_version if result else "",
                 parameters_sha256=result.parameters_sha256 if result else "",

@@ -153,7 +153,9 @@ function qualityText(last) {
   const parts = [];
   if (Number.isFinite(last.quality_score)) parts.push(`score ${last.quality_score.toFixed(2)}`);
   if (Number.isFinite(q.speed_variation)) parts.push(`speed variation ${(100 * q.speed_variation).toFixed(1)} %`);
-  if (Array.isArray(q.tach_repairs)) parts.push(`${q.tach_repairs.length} tach repair(s)`);
+  // synthetic pulses from the mesh phase are not a tach: their (empty) repair list says nothing
+  const tach = !q.angle_source || q.angle_source === "tachometer";
+  if (tach && Array.isArray(q.tach_repairs)) parts.push(`${q.tach_repairs.length} tach repair(s)`);
   if (Number.isFinite(q.clipped_fraction) && q.clipped_fraction > 0) parts.push(`clipped ${(100 * q.clipped_fraction).toFixed(2)} %`);
   const frame = frameText(q);
   if (frame) parts.push(frame);

@@ -234,6 +234,7 @@ def test_a_tachless_campaign_replays_every_record_accepted_and_alarms_the_spall_
 
         report = collect(session, "rig-only")
         assert report.mesh_phase_records == 11
+        assert all(r.tach_repairs is None for r in report.records)  # no tach, no tach repairs
         assert report.records[0].angle == "mesh phase; campaign's tach-less frame (founds it)"
         assert all(re.fullmatch(r"mesh phase; campaign's tach-less frame \(\d+\.\d SE.*\)", r.angle)
                    for r in report.records[1:]), [r.angle for r in report.records]

@@ -349,3 +349,4 @@ def test_a_tachless_rig_says_on_which_channels_its_tooth_numbers_hold(page: Any,
     row = page.locator("#overview tbody tr[data-rig='rig-t']").inner_text()
     assert ("angle from the mesh phase; teeth in the campaign's tach-less frame on 1 of 2 "
             "channels (not on a1)") in row
+    assert "tach repair" not in row  # no tach: the synthetic pulses' repair list is not shown
