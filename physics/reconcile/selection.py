@@ -187,18 +187,24 @@ def _score_all(
     return scores
 
 
+def _residual_peak_ratios(
+    fitter: _Fitter, evaluation: _Evaluation, frequency_hz: FloatArray, damping_ratio: FloatArray
+) -> FloatArray:
+    """:func:`mode_peak_ratio` of ``evaluation``'s residual (χ² per used bin) for modes at
+    ``frequency_hz`` with ``damping_ratio``."""
+    half = evaluation.residual.size // 2
+    residual = evaluation.residual[: 2 * half]
+    chi2 = residual[:half] ** 2 + residual[half:] ** 2
+    return np.asarray(mode_peak_ratio(chi2, fitter.fm.frequency_hz[fitter.used], frequency_hz, damping_ratio))
+
+
 def _identifiable_modes(
     fitter: _Fitter, evaluation: _Evaluation, items: list[tuple[Candidate, ComplexArray, list[float]]]
 ) -> list[bool]:
     """Whether each mode candidate's frequency band holds a peak of the current residual."""
-    half = evaluation.residual.size // 2
-    residual = evaluation.residual[: 2 * half]
-    chi2 = residual[:half] ** 2 + residual[half:] ** 2
-    freq = fitter.fm.frequency_hz[fitter.used]
     f0 = np.array([c.mode_frequency_hz or 0.0 for c, _cols, _r in items])
     zeta = np.array([c.mode_damping_ratio or 0.0 for c, _cols, _r in items])
-    ratio = mode_peak_ratio(chi2, freq, f0, zeta)
-    return [bool(r >= MIN_PEAK_RATIO) for r in ratio]
+    return [bool(r >= MIN_PEAK_RATIO) for r in _residual_peak_ratios(fitter, evaluation, f0, zeta)]
 
 
 def _refit_mode_on_a_peak(
@@ -208,12 +214,7 @@ def _refit_mode_on_a_peak(
     ``evaluation``'s residual (the residual before the mode, :func:`mode_peak_ratio`): the scan
     checks its grid point, the refit may move it anywhere."""
     frequency_hz, damping_ratio = fitter.model_at(theta, trial)[2][-1]
-    half = evaluation.residual.size // 2
-    residual = evaluation.residual[: 2 * half]
-    chi2 = residual[:half] ** 2 + residual[half:] ** 2
-    ratio = mode_peak_ratio(
-        chi2, fitter.fm.frequency_hz[fitter.used], np.array([frequency_hz]), np.array([damping_ratio])
-    )
+    ratio = _residual_peak_ratios(fitter, evaluation, np.array([frequency_hz]), np.array([damping_ratio]))
     return bool(ratio[0] >= MIN_PEAK_RATIO)
 
 
