@@ -18,7 +18,19 @@ Method
    that *every* tooth shares removed — shaft orders ``0..2`` (eccentricity and runout, which
    follow load and mounting) and every mesh harmonic with ``±sidebands`` shaft orders (they move
    with the day's load and speed, and a transfer path that shifts with speed changes them for
-   all teeth alike). What is left is tooth-specific change.
+   all teeth alike). What is left is tooth-specific change. Before that, each order of the
+   record and of the reference is **weighted by the inverse of how much it scattered among the
+   reference records** (:func:`order_weights`: noise, and what the days' load and speed did to
+   the path, averaged over neighbouring orders): the orders where the gear's own content held
+   still from day to day count most, as in a matched filter against coloured noise. Chosen on
+   ``benchmarks/bench_detection.py``'s ``tune`` and ``tune-2`` parts (seeds 0–159, 80 spalled
+   + 80 healthy campaigns per generator, the ``change`` rule alone, offline on the stored
+   averages): project generator onset day 82 → 94 %, by the day after 90 → 99 %, right tooth
+   90 → 99 %, healthy campaigns alarmed 0 → 0 of 80; independent generator 16 → 16 %, 31 →
+   28 %, 46 → 48 %, 1 → 0 of 80. A floor on the scatter (:data:`WHITENING_FLOOR_FRACTION` of
+   its mean) is needed: relative to the *median* order instead, the orders above the band,
+   which hold almost nothing, got the largest weights, and 35 of 80 healthy independent
+   campaigns alarmed, each on one tooth from the first scored day on.
 4. **Per-tooth change energy** (:func:`tooth_change_energy`): the energy of the change signal
    in each tooth's sector, the sector centred :data:`DEFAULT_LAG_PITCH` pitches *after* the
    tooth's pitch angle (below), after removing, sector by sector, the least-squares part of the
@@ -121,6 +133,17 @@ MIN_MESH_ENERGY_FRACTION = 1e-4
 """An average whose mesh harmonics hold less than this share of its energy (−40 dB) has no mesh
 content to normalise by (a real gear's hold several per cent or more): round-off would set the gain."""
 
+WHITENING_HALF_WIDTH = 16
+"""Orders on each side over which the reference records' scatter is averaged before it weights
+the change (:func:`order_weights`): three records give each order a six-degree-of-freedom
+estimate; 33 orders give about two hundred."""
+
+WHITENING_FLOOR_FRACTION = 0.1
+"""No order's scatter is taken below this fraction of the mean scatter (:func:`order_weights`):
+orders beyond the sensor's or the anti-alias filter's band hold next to nothing, and dividing by
+next to nothing would let round-off and interpolation residue there outweigh the band the gear
+is heard in."""
+
 _MIN_LOG_SPREAD = 1e-3
 """Smallest spread of ``ln E`` over the teeth (nepers) used as the score's unit."""
 
@@ -178,6 +201,59 @@ def shared_orders_mask(bins: int, pinion_teeth: int) -> NDArray[np.bool_]:
         (orders >= teeth - SHARED_SIDEBANDS) & (distance <= SHARED_SIDEBANDS)
     )
     return shared
+
+
+def order_weights(reference_spectra: ArrayLike, pinion_teeth: int) -> NDArray[np.float64]:
+    """Per-order weights ``1/σ_o`` from the reference records' scatter (module docstring, step 3).
+
+    ``σ_o²`` is the mean squared deviation of the reference records' gain-free spectra from
+    their mean at order ``o``, averaged over :data:`WHITENING_HALF_WIDTH` orders on each side
+    (the shared orders, which the change leaves out, take no part) and never below
+    :data:`WHITENING_FLOOR_FRACTION` of its mean. What scatters from one reference day to the
+    next — noise, and what the day's load and speed do to the path — is weighted down; the
+    orders that held still are weighted up. The weights have an RMS of 1 over the orders the
+    change keeps; with no scatter at all (identical records) they are all 1.
+
+    Parameters
+    ----------
+    reference_spectra : array_like of complex, shape (R, N // 2 + 1)
+        The reference records' gain-free spectra (:func:`gain_free_spectrum`); with one record
+        there is no scatter, and the weights are all 1.
+    pinion_teeth : int
+
+    Returns
+    -------
+    ndarray of float64, shape (N // 2 + 1,)
+
+    Examples
+    --------
+    Orders 100–199 scatter twice as much as the others: they are weighted half as much.
+
+    >>> rng = np.random.default_rng(0)
+    >>> scatter = np.where((np.arange(257) >= 100) & (np.arange(257) < 200), 2.0, 1.0)
+    >>> w = order_weights(rng.standard_normal((60, 257)) * scatter, 128)
+    >>> bool(1.7 < w[50] / w[150] < 2.3)
+    True
+    >>> round(float(np.sqrt(np.mean(w[~shared_orders_mask(257, 128)] ** 2))), 6)
+    1.0
+    """
+    spectra = np.asarray(reference_spectra, dtype=np.complex128)
+    if spectra.ndim != 2 or spectra.shape[0] < 1:
+        raise ValueError(f"need reference spectra of shape (R, bins), got shape {spectra.shape}")
+    kept = ~shared_orders_mask(spectra.shape[1], pinion_teeth)
+    scatter = np.mean(np.abs(spectra - spectra.mean(axis=0)) ** 2, axis=0) * kept
+    window = np.ones(2 * WHITENING_HALF_WIDTH + 1)
+    counts = np.convolve(kept.astype(np.float64), window, mode="same")
+    smoothed = np.convolve(scatter, window, mode="same") / np.fmax(counts, 1.0)
+    ones = np.ones(spectra.shape[1])
+    if spectra.shape[0] < 2 or not kept.any():
+        return ones
+    level = float(np.mean(smoothed[kept]))
+    if not np.isfinite(level) or level <= 0.0:
+        return ones
+    weights = 1.0 / np.sqrt(np.fmax(smoothed, WHITENING_FLOOR_FRACTION * level))
+    out: NDArray[np.float64] = weights / np.sqrt(np.mean(weights[kept] ** 2))
+    return out
 
 
 def change_signal(
@@ -412,8 +488,10 @@ def campaign_change_state(
         earlier = [i for i in admitted if lengths[i] == lengths[index]][:reference_records]
         scores: NDArray[np.float64] | None = None
         if len(earlier) >= min_reference_records:
-            reference = np.mean([s for i in earlier if (s := spectra[i]) is not None], axis=0)
-            change = change_signal(spectrum, reference, pinion_teeth, lengths[index])
+            kept = np.array([s for i in earlier if (s := spectra[i]) is not None])
+            weights = order_weights(kept, pinion_teeth)
+            reference = kept.mean(axis=0) * weights
+            change = change_signal(spectrum * weights, reference, pinion_teeth, lengths[index])
             signature = change_signal(  # the reference's own tooth-specific content
                 reference, np.zeros_like(reference), pinion_teeth, lengths[index])
             energy = tooth_change_energy(

@@ -13,6 +13,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from detection.default_rules import CHANGE_RULE
+from dsp.toothchange import DEFAULT_REFERENCE_RECORDS, campaign_change_state
 from gearwatch.usecases.alarms import evaluate_record
 from gearwatch.usecases.running_baselines import lock_rig
 from gearwatch.usecases.tooth_change import refresh_tooth_change
@@ -111,12 +112,18 @@ def test_a_record_arriving_last_is_scored_from_the_reference_alone_and_equals_a_
 
     monkeypatch.setattr(tooth_change, "_refresh_channel", counting)
     sequential = _ingest(db_session, "c", list(range(days)), days=days, onset=onset)
-    # records 1-8 recompute (no complete reference before them), records 9-20 do not
-    assert full_recomputes == 8
+    # the records up to the 8th admitted one recompute (no complete reference before them; a
+    # healthy record that scores above the admission level is not admitted), the later ones do not
+    averages = simulated_days(TEETH, days, noise=0.02, seed=3, spall=(SPALL_TOOTH, onset, 0.12),
+                              tooth1_deg=TOOTH1_DEG)
+    _, admitted = campaign_change_state([a.astype(np.float32) for a in averages],
+                                        [TOOTH1_DEG] * days, TEETH)
+    assert len(admitted) == DEFAULT_REFERENCE_RECORDS and admitted[-1] < onset - 1
+    assert full_recomputes == admitted[-1] + 1
     campaign_id = db_session.execute(
         sa.select(Campaign.id).where(Campaign.rig_id == sequential)).scalar_one()
     written = refresh_tooth_change(db_session, campaign_id)
-    assert full_recomputes == 9, "the refresh without a record id recomputes the campaign"
+    assert full_recomputes == admitted[-1] + 2, "the refresh without a record id recomputes the campaign"
     assert written == 0  # and changes nothing
 
     order = list(range(days))
