@@ -365,11 +365,15 @@ def test_default_score_rule_false_alarm_rate_on_pure_noise() -> None:
     assert opened <= 3
 
 
-def test_default_score_rule_alarms_on_a_growing_spall_by_the_next_day() -> None:
-    # a tooth whose score jumps by 3 standard errors on the onset day, then doubles
+def test_default_score_rule_alarms_on_a_growing_spall() -> None:
+    # a tooth whose score jumps by 4 standard errors on the onset day, then doubles: an alarm
+    # by the next day; from 3 standard errors, by the day after (the rule is the strict
+    # companion of ``change``, which sees such a spall first: detection/default_rules.py)
     baseline = [0.3, -0.2, 0.5]
+    states, _ = run([*baseline, 4.0, 8.0, 16.0], score_rule())
+    assert states[3] is None and states[4] == "alarm"
     states, _ = run([*baseline, 3.0, 6.0, 12.0], score_rule())
-    assert states[4] == "alarm"
+    assert states[4] is None and states[5] == "alarm"
 
 
 def test_wind_turbine_raw_kurtosis_alarms_on_the_first_risen_record() -> None:
@@ -388,10 +392,12 @@ def test_a_quiet_tooth_becoming_typical_is_not_an_alarm_standing_out_is() -> Non
     """``score`` is relative to the record's other teeth (0 = typical): its baseline centre is
     never below 0. The same values on an indicator without that rule would alarm."""
     quiet_then_typical = [-4.0, -5.0, -4.5, 0.3, 0.5, 0.2, 0.4]
-    states, _ = run(quiet_then_typical, score_rule())
+    # at levels loose enough for the rise to count (warning 4, CUSUM k = 2; the default is stricter)
+    looser = score_rule(warning_level=4.0, cusum_reference=2.0)
+    states, _ = run(quiet_then_typical, looser)
     assert states[-1] is None and all(s is None for s in states)
     absolute = RuleSettings("mci_depth_se", **{  # same settings, an ordinary indicator
-        k: v for k, v in score_rule().__dict__.items() if k not in ("indicator", "direction")})
+        k: v for k, v in looser.__dict__.items() if k not in ("indicator", "direction")})
     assert run(quiet_then_typical, absolute)[0][-1] is not None
-    standing_out = [-4.0, -5.0, -4.5, 5.0, 6.0, 7.0]
+    standing_out = [-4.0, -5.0, -4.5, 6.0, 7.0, 8.0]
     assert run(standing_out, score_rule())[0][-1] is not None

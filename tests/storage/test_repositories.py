@@ -318,7 +318,7 @@ def test_alarm_rule_crud_and_validation(db_session: Session) -> None:
     ]
     assert len(rules.ensure_defaults(campaign.rig_id)) == len(DEFAULT_RULES)  # idempotent
     score = next(r for r in defaults if r.indicator == "score")
-    assert (score.min_baseline_records, score.cusum_reference, score.cusum_limit) == (3, 2.0, 3.0)
+    assert (score.min_baseline_records, score.cusum_reference, score.cusum_limit) == (3, 3.0, 3.0)
     rule = rules.create(campaign.rig_id, "diff_energy", baseline_records=5, persistence=2)
     assert (rule.warning_level, rule.alarm_level, rule.clear_level) == (4.0, 8.0, 2.0)
     with pytest.raises(Conflict):
