@@ -237,3 +237,8 @@ def test_order_weights_edge_cases() -> None:
     assert np.array_equal(order_weights(np.stack([spectrum, spectrum]), 10), np.ones(spectrum.size))
     with pytest.raises(ValueError, match="shape"):
         order_weights(spectrum, 10)
+    # fewer orders than the smoothing window: one weight per order all the same
+    rng = np.random.default_rng(0)
+    short = rng.standard_normal((4, 9)) + 1j * rng.standard_normal((4, 9))
+    weights = order_weights(short, 3)
+    assert weights.shape == (9,) and np.all(np.isfinite(weights)) and np.all(weights > 0)
