@@ -392,6 +392,7 @@ PARTS = {
     "held-out-2": range(20000, 20200),
     "held-out-3": range(30000, 30200),
     "held-out-4": range(40000, 40200),
+    "held-out-5": range(50000, 50200),
 }
 """``held-out-2``: a second held-out range, first run after the change detector's revision that
 followed a look at ``held-out`` (so that one part stays unseen while the method was changed).

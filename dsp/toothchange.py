@@ -27,7 +27,10 @@ Method
    + 80 healthy campaigns per generator, the ``change`` rule alone, offline on the stored
    averages): project generator onset day 82 → 94 %, by the day after 90 → 99 %, right tooth
    90 → 99 %, healthy campaigns alarmed 0 → 0 of 80; independent generator 16 → 16 %, 31 →
-   28 %, 46 → 48 %, 1 → 0 of 80. A floor on the scatter (:data:`WHITENING_FLOOR_FRACTION` of
+   28 %, 46 → 48 %, 1 → 0 of 80. On the held-out part run afterwards (``held-out-4``) the
+   project generator gained as much, and the independent generator lost a little (the pit it
+   simulates is heard in the orders the days' load and speed scatter most; the benchmark's
+   docstring has the tables). A floor on the scatter (:data:`WHITENING_FLOOR_FRACTION` of
    its mean) is needed: relative to the *median* order instead, the orders above the band,
    which hold almost nothing, got the largest weights, and 35 of 80 healthy independent
    campaigns alarmed, each on one tooth from the first scored day on.
@@ -135,8 +138,8 @@ content to normalise by (a real gear's hold several per cent or more): round-off
 
 WHITENING_HALF_WIDTH = 16
 """Orders on each side over which the reference records' scatter is averaged before it weights
-the change (:func:`order_weights`): three records give each order a six-degree-of-freedom
-estimate; 33 orders give about two hundred."""
+the change (:func:`order_weights`): three records leave each order two complex degrees of
+freedom (four real ones); 33 orders give about a hundred and thirty."""
 
 WHITENING_FLOOR_FRACTION = 0.1
 """No order's scatter is taken below this fraction of the mean scatter (:func:`order_weights`):
@@ -489,9 +492,9 @@ def campaign_change_state(
         earlier = [i for i in admitted if lengths[i] == lengths[index]][:reference_records]
         scores: NDArray[np.float64] | None = None
         if len(earlier) >= min_reference_records:
-            kept = np.array([s for i in earlier if (s := spectra[i]) is not None])
-            weights = order_weights(kept, pinion_teeth)
-            reference = kept.mean(axis=0) * weights
+            reference_spectra = np.array([s for i in earlier if (s := spectra[i]) is not None])
+            weights = order_weights(reference_spectra, pinion_teeth)
+            reference = reference_spectra.mean(axis=0) * weights
             change = change_signal(spectrum * weights, reference, pinion_teeth, lengths[index])
             signature = change_signal(  # the reference's own tooth-specific content
                 reference, np.zeros_like(reference), pinion_teeth, lengths[index])
