@@ -26,7 +26,8 @@ study below). Generated records are cached under ``/tmp/gw-eval/`` as npz.
 
 Parts (never mixed; even seeds spalled, odd healthy): ``tune`` = seeds 0–59 and ``tune-2`` =
 60–159, used while choosing the rule settings; ``held-out`` = 10000–10199, ``held-out-2`` =
-20000–20199 and ``held-out-3`` = 30000–30199, each run for a report once and then spent (see
+20000–20199, ``held-out-3`` = 30000–30199, ``held-out-4`` = 40000–40199 and ``held-out-5`` =
+50000–50199, each run for a report once and then spent (see
 below which version each one measured; the ``held-out`` and ``held-out-2`` reports used their
 first 100 seeds, ``--limit 100``). ``--quick`` takes the first 12 campaigns of the part.
 
