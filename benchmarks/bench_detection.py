@@ -138,7 +138,7 @@ gain holds on both held-out parts (healthy campaigns alarmed 9 → 2 and 10 → 
 the per-tooth rules are now as early as FM4 or earlier (by the day after: 26 % against 13 %).
 
 Looked at on ``held-out-4`` *after* it was run (so that part is no longer unseen for these), and
-not adopted: a partial weighting ``scatter^(−p/2)`` — p = 0.5 kept the independent generator
+not adopted (figures for the ``change`` rule alone): a partial weighting ``scatter^(−p/2)`` — p = 0.5 kept the independent generator
 where it was (11 / 22 / 40 %) but took only part of the project's gain (onset day 84 %, by the
 next 90 %, right tooth 85 %, 1 healthy of 100); p = 0.75 in between. An Eckart weighting (the
 reference's own tooth-specific spectrum over the scatter): project worse than the previous code
