@@ -77,29 +77,31 @@ DEFAULT_RULES: dict[str, dict[str, Any]] = {
 }
 """Rules every new rig gets (:meth:`AlarmRuleRepository.ensure_defaults`).
 
-``score`` (a warning at 5, an alarm at 6, CUSUM k = 3, h = 3 — the companion of ``change``, see
-the last paragraph) watches each tooth's per-record score (:mod:`dsp.toothscore`: its MCI evidence
-against the other teeth of the same record, in the record's own standard errors) against
-that tooth's own history: baseline median of its first records (scoring from the 3rd record,
-the baseline growing to 8 with records that look normal), spread = the robust spread of those
-scores but never below 1 — one standard error, the noise the score is already expressed in —
-nor below 25 % of the baseline score (a tooth with a steady manufacturing well scores 5–15 every
-day, and its score varies with the operating conditions in proportion), and a CUSUM so that a
-spall that is small on its first day and grows alarms on a later day. The former ``mci_depth`` rule (fixed 0.1 Np spread floor, 8 baseline records) is still
-created, for continuity. First chosen on the ``tune`` part of ``benchmarks/bench_detection.py``
-(seeds 0–59) among 12 settings of (k, h, relative floor, warning level), as a rule on its own:
-warning 4, CUSUM k = 2, h = 3 alarmed on the onset day in 87 % of
-the 30 spalled campaigns and by the next day in 100 %, on the right tooth (top-scoring alarm) in
-93 %, with no alarm in the 30 healthy campaigns (k = 1.5, h = 4, 15 %: 77 %, 100 %, 90 %, 3 of 30
-healthy campaigns with an alarm). On pure N(0, 1) scores: ≤ 0.25 false alarms per 1,000
-tooth-days (``tests/detection/test_alarms.py``). Revised 2026-11-28, once ``change`` had weighted its orders (:func:`dsp.toothchange.order_weights`)
-and alarmed by the day after onset in 99 % of the ``tune`` + ``tune-2`` spalled campaigns of the
-project generator: an operator gets both rules, and with warning 4 and k = 2 ``score`` added 2 onset-day detections of 80 and 2 healthy campaigns alarmed of 80 (1 of 80
-on the independent generator, where it added no detection). With warning 5 and k = 3, both rules
-together: 96 % on the onset day, 99 % by the next, right tooth 99 %, no healthy campaign alarmed
-on either generator (``score`` alone: onset day 84 → 71 %, by the next 96 → 92 %). It is meant to replace the former ``mci_depth`` rule with its fixed
-0.1 Np spread floor (which is too strict on a noisy record and too lax on a clean one: an
-8 µm spall scored ~3 units and never alarmed in the independent simulator's campaigns).
+``score`` (a warning at 5, an alarm at 6, CUSUM k = 3, h = 3 — the companion of ``change``, see the
+last paragraph) watches each tooth's per-record score (:mod:`dsp.toothscore`: its MCI evidence
+against the other teeth of the same record, in the record's own standard errors) against that
+tooth's own history: baseline median of its first records (scoring from the 3rd record, the
+baseline growing to 8 with records that look normal), spread = the robust spread of those scores
+but never below 1 — one standard error, the noise the score is already expressed in — nor below
+25 % of the baseline score (a tooth with a steady manufacturing well scores 5–15 every day, and its
+score varies with the operating conditions in proportion), and a CUSUM so that a spall that is
+small on its first day and grows alarms on a later day. The former ``mci_depth`` rule (fixed 0.1 Np
+spread floor, 8 baseline records) is still created, for continuity. First chosen on the ``tune``
+part of ``benchmarks/bench_detection.py`` (seeds 0–59) among 12 settings of (k, h, relative floor,
+warning level), as a rule on its own: warning 4, CUSUM k = 2, h = 3 alarmed on the onset day in
+87 % of the 30 spalled campaigns and by the next day in 100 %, on the right tooth (top-scoring
+alarm) in 93 %, with no alarm in the 30 healthy campaigns (k = 1.5, h = 4, 15 %: 77 %, 100 %, 90 %,
+3 of 30 healthy campaigns with an alarm). On pure N(0, 1) scores: ≤ 0.25 false alarms per 1,000
+tooth-days (``tests/detection/test_alarms.py``). Revised 2026-11-28, once ``change`` had weighted
+its orders (:func:`dsp.toothchange.order_weights`) and alarmed by the day after onset in 99 % of
+the ``tune`` + ``tune-2`` spalled campaigns of the project generator: an operator gets both rules,
+and with warning 4 and k = 2 ``score`` added 2 onset-day detections of 80 and 2 healthy campaigns
+alarmed of 80 (1 of 80 on the independent generator, where it added no detection). With warning 5
+and k = 3, both rules together: 96 % on the onset day, 99 % by the next, right tooth 99 %, no
+healthy campaign alarmed on either generator (``score`` alone: onset day 84 → 71 %, by the next
+96 → 92 %). It is meant to replace the former ``mci_depth`` rule with its fixed 0.1 Np spread floor
+(which is too strict on a noisy record and too lax on a clean one: an 8 µm spall scored ~3 units
+and never alarmed in the independent simulator's campaigns).
 
 The whole-record rules (:data:`WHOLE_RECORD_RULE`): FM4 and NA4 of the average, the kurtosis
 of the average and of the raw signal (these two work without tooth counts; the raw one also
