@@ -244,14 +244,14 @@ def order_weights(reference_spectra: ArrayLike, pinion_teeth: int) -> NDArray[np
     if spectra.ndim != 2 or spectra.shape[0] < 1:
         raise ValueError(f"need reference spectra of shape (R, bins), got shape {spectra.shape}")
     kept = ~shared_orders_mask(spectra.shape[1], pinion_teeth)
+    ones = np.ones(spectra.shape[1])
+    if spectra.shape[0] < 2 or not kept.any():
+        return ones
     scatter = np.mean(np.abs(spectra - spectra.mean(axis=0)) ** 2, axis=0) * kept
     window = np.ones(2 * WHITENING_HALF_WIDTH + 1)
     centre = slice(WHITENING_HALF_WIDTH, WHITENING_HALF_WIDTH + scatter.size)  # any length
     counts = np.convolve(kept.astype(np.float64), window)[centre]
     smoothed = np.convolve(scatter, window)[centre] / np.fmax(counts, 1.0)
-    ones = np.ones(spectra.shape[1])
-    if spectra.shape[0] < 2 or not kept.any():
-        return ones
     level = float(np.mean(smoothed[kept]))
     if not np.isfinite(level) or level <= 0.0:
         return ones
