@@ -6,6 +6,7 @@ persistence, hysteresis, acknowledgement).
 
 from detection.alarms import (
     INDICATOR_DIRECTIONS,
+    RULE_SETTING_NAMES,
     Baseline,
     Evaluation,
     RuleSettings,
@@ -20,6 +21,7 @@ from detection.alarms import (
 
 __all__ = [
     "INDICATOR_DIRECTIONS",
+    "RULE_SETTING_NAMES",
     "Baseline",
     "Evaluation",
     "RuleSettings",

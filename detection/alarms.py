@@ -126,6 +126,23 @@ def indicator_direction(indicator: str) -> Direction:
         raise ValueError(f"unknown indicator {indicator!r} (known: {known})") from None
 
 
+RULE_SETTING_NAMES = (
+    "baseline_records",
+    "warning_level",
+    "alarm_level",
+    "clear_level",
+    "persistence",
+    "spread_floor_fraction",
+    "spread_floor_abs",
+    "min_baseline_records",
+    "cusum_reference",
+    "cusum_limit",
+)
+"""The settings of :class:`RuleSettings` that a stored rule carries and an operator may change
+(the indicator names the rule; the direction follows from it): storage, the use-case and the REST
+schema copy exactly these."""
+
+
 @dataclass(frozen=True)
 class RuleSettings:
     """Settings of one alarm rule (levels in baseline units, see the module docstring).

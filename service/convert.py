@@ -8,6 +8,7 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
+from detection.alarms import RULE_SETTING_NAMES
 from gearwatch.floor.errors import NotFound
 from service import schemas
 from storage.models import Alarm, AlarmEvent, AlarmRule, Campaign, Record, ResultVersion, Rig
@@ -184,16 +185,7 @@ def alarm_event_out(event: AlarmEvent) -> schemas.AlarmEventOut:
 def rule_out(rule: AlarmRule) -> schemas.AlarmRuleOut:
     return schemas.AlarmRuleOut(
         indicator=rule.indicator,
-        baseline_records=rule.baseline_records,
-        warning_level=rule.warning_level,
-        alarm_level=rule.alarm_level,
-        clear_level=rule.clear_level,
-        persistence=rule.persistence,
-        spread_floor_fraction=rule.spread_floor_fraction,
-        spread_floor_abs=rule.spread_floor_abs,
-        min_baseline_records=rule.min_baseline_records,
-        cusum_reference=rule.cusum_reference,
-        cusum_limit=rule.cusum_limit,
         enabled=rule.enabled,
         updated_at=rule.updated_at,
+        **{name: getattr(rule, name) for name in RULE_SETTING_NAMES},
     )

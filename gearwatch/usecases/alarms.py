@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from detection.alarms import RuleSettings, TrackState, acknowledge, step
+from detection.alarms import RULE_SETTING_NAMES, RuleSettings, TrackState, acknowledge, step
 from gearwatch.floor.results import HISTORY_TOOTH_INDICATORS
 from storage.models import (
     Alarm,
@@ -59,17 +59,7 @@ class AlarmChange:
 
 def rule_settings(rule: AlarmRule) -> RuleSettings:
     return RuleSettings(
-        indicator=rule.indicator,
-        baseline_records=rule.baseline_records,
-        warning_level=rule.warning_level,
-        alarm_level=rule.alarm_level,
-        clear_level=rule.clear_level,
-        persistence=rule.persistence,
-        spread_floor_fraction=rule.spread_floor_fraction,
-        spread_floor_abs=rule.spread_floor_abs,
-        min_baseline_records=rule.min_baseline_records,
-        cusum_reference=rule.cusum_reference,
-        cusum_limit=rule.cusum_limit,
+        indicator=rule.indicator, **{name: getattr(rule, name) for name in RULE_SETTING_NAMES}
     )
 
 

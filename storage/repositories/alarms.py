@@ -10,6 +10,7 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import selectinload
 
+from detection.alarms import RULE_SETTING_NAMES
 from detection.default_rules import DEFAULT_RULES
 from gearwatch.floor.errors import Conflict, InputError
 from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
@@ -29,19 +30,8 @@ ALARM_INDICATORS = STORED_TOOTH_INDICATORS + METRIC_NAMES
 """Indicators an alarm rule can watch: per tooth, or whole-record metrics (tooth 0)."""
 
 
-RULE_FIELDS = (
-    "baseline_records",
-    "warning_level",
-    "alarm_level",
-    "clear_level",
-    "persistence",
-    "spread_floor_fraction",
-    "spread_floor_abs",
-    "min_baseline_records",
-    "cusum_reference",
-    "cusum_limit",
-    "enabled",
-)
+RULE_FIELDS = (*RULE_SETTING_NAMES, "enabled")
+"""What an operator may change on a stored rule."""
 
 
 class AlarmRuleRepository(Repository[AlarmRule]):

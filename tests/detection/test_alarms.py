@@ -401,3 +401,20 @@ def test_a_quiet_tooth_becoming_typical_is_not_an_alarm_standing_out_is() -> Non
     assert run(quiet_then_typical, absolute)[0][-1] is not None
     standing_out = [-4.0, -5.0, -4.5, 6.0, 7.0, 8.0]
     assert run(standing_out, score_rule())[0][-1] is not None
+
+
+def test_the_stored_rule_settings_are_every_setting_of_a_rule() -> None:
+    """Storage, the alarm use-case and the REST schema copy a rule's settings by
+    ``RULE_SETTING_NAMES``: a setting added to ``RuleSettings`` without it would be silently
+    dropped on the way from the database to the evaluation."""
+    from dataclasses import fields
+
+    from detection.alarms import RULE_SETTING_NAMES, RuleSettings
+    from service.schemas import AlarmRuleOut
+    from storage.models import AlarmRule
+
+    settings = {f.name for f in fields(RuleSettings)} - {"indicator", "direction"}
+    assert set(RULE_SETTING_NAMES) == settings
+    columns = set(AlarmRule.__table__.columns.keys())
+    assert set(RULE_SETTING_NAMES) <= columns, set(RULE_SETTING_NAMES) - columns
+    assert set(RULE_SETTING_NAMES) <= set(AlarmRuleOut.model_fields)
