@@ -20,7 +20,6 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -72,6 +71,7 @@ from gearwatch.usecases.signal_checks import (
 )
 from gearwatch.usecases.tachless import (
     NO_HINT_REFUSAL,
+    PlacedAverages,
     place_in_tooth_frame,
     tach_frame_fingerprints,
     unsteady_angle,
@@ -380,23 +380,119 @@ def _analyze_channel(
     tach_on_pinion: bool = True,
     frame_placement: _FramePlacement | None = None,
 ) -> ChannelAnalysis:
+    """One accelerometer channel: its synchronous averages (checked), their quality, then the
+    whole-shaft metrics (no tooth counts) or the tooth frame, the MCI and the per-tooth results."""
     rig = campaign.rig
-    ppr = tach.pulses_per_rev
-    pulse_times_s = tach.pulse_times_s
-    if has_teeth:
-        assert rig.pinion_teeth is not None and rig.gear_teeth is not None
-        pinion_spr = rig.pinion_teeth * params.samples_per_mesh
-        gear_spr = rig.gear_teeth * params.samples_per_mesh
-        # tach-shaft revolutions after which both wheels are back on their starting teeth
-        common = math.gcd(rig.pinion_teeth, rig.gear_teeth)
-        hunting_tach_revs = (rig.gear_teeth if tach_on_pinion else rig.pinion_teeth) // common
-    else:
-        pinion_spr = gear_spr = params.samples_per_rev_without_teeth
-        hunting_tach_revs = 1
+    pinion_spr, gear_spr, hunting_tach_revs = _grids(campaign, params, has_teeth, tach_on_pinion)
+    angle = _checked_averages(
+        name, signal, sample_rate_hz, tach, params, pinion_spr, gear_spr, pinion_per_tach_rev,
+        hunting_tach_revs, block_samples,
+    )
+    quality = _channel_quality(angle, tach, signal)
+    curves: dict[str, np.ndarray] = {
+        "pinion_average": angle.pinion_average.astype(np.float32),
+        "speed_rpm": (tach.rev_speed_rpm * pinion_per_tach_rev).astype(np.float32),
+    }
+    speed_rpm = float(tach.mean_rpm * pinion_per_tach_rev)
+    if not has_teeth:
+        return _whole_shaft_channel(name, angle, signal, speed_rpm, pinion_spr, curves, quality)
+
+    assert rig.pinion_teeth is not None and rig.gear_teeth is not None
+    pinion_teeth = rig.pinion_teeth
+    placed = _in_tooth_frame(angle, rig.pinion_teeth, rig.gear_teeth, rig.tooth1_pitch_angle_deg,
+                             frame_placement)
+    average = placed.pinion_average
+    tooth1_pitch_angle_deg, tooth_frame = placed.tooth1_pitch_angle_deg, placed.tooth_frame
+    if frame_placement is not None:
+        curves["pinion_average"] = average.astype(np.float32)
+    regular = regular_signal(average, pinion_teeth, sidebands=params.difference_sidebands)
+    residual = residual_signal(average, pinion_teeth)
+    difference = difference_signal(average, pinion_teeth, sidebands=params.difference_sidebands)
+
+    window = params.mci_window_samples or params.samples_per_mesh
+    mci = moving_cepstrum_integral(
+        average, window, form=params.mci_form, median_width=params.mci_median_width
+    )
+    teeth, scores = _tooth_results(
+        angle, mci.filtered, difference, pinion_teeth, tooth1_pitch_angle_deg, window, params,
+        placed.pinion_delay_samples,
+    )
+    per_tooth_refused = tooth_frame.get("kind") == "refused"
+    average_metrics = gear_metrics(
+        average,
+        residual,
+        difference,
+        regular,
+        pinion_teeth,
+        na4_baseline_variance=baselines.na4_residual_variance,
+        nb4_baseline_variance=baselines.nb4_envelope_variance,
+    )
+    metrics = {key: float(value) for key, value in average_metrics.items()} | signal.raw_metrics
+    curves.update(
+        {
+            "gear_average": placed.gear_average.astype(np.float32),
+            "difference": difference.astype(np.float32),
+            "mci_raw": mci.raw.astype(np.float32),
+            "mci": mci.filtered.astype(np.float32),
+        }
+    )
+    return ChannelAnalysis(
+        channel=name,
+        revolutions=angle.pinion_revolutions,
+        gear_revolutions=angle.gear_revolutions,
+        speed_rpm=speed_rpm,
+        samples_per_rev=pinion_spr,
+        metrics=metrics,
+        # a refused tooth frame: the numbers would name the wrong teeth in the campaign's trends
+        teeth=[] if per_tooth_refused else teeth,
+        worst_tooth=(
+            None if per_tooth_refused else standout_tooth(scores, standout_threshold(pinion_teeth))
+        ),
+        curves=curves,
+        quality=quality,
+        baseline_stats=_baseline_stats(residual, average, pinion_teeth, baselines) | (
+            {} if per_tooth_refused else {"tooth1_pitch_angle_deg": float(tooth1_pitch_angle_deg)}
+        ),
+        tooth_frame=tooth_frame,
+        frame_fingerprints=placed.fingerprints,
+    )
+
+
+def _grids(
+    campaign: Campaign, params: AnalysisParameters, has_teeth: bool, tach_on_pinion: bool
+) -> tuple[int, int, int]:
+    """Samples per pinion and per gear revolution, and the tach-shaft revolutions after which
+    both wheels are back on their starting teeth (1 without tooth counts)."""
+    rig = campaign.rig
+    if not has_teeth:
+        return params.samples_per_rev_without_teeth, params.samples_per_rev_without_teeth, 1
+    assert rig.pinion_teeth is not None and rig.gear_teeth is not None
+    common = math.gcd(rig.pinion_teeth, rig.gear_teeth)
+    return (
+        rig.pinion_teeth * params.samples_per_mesh,
+        rig.gear_teeth * params.samples_per_mesh,
+        (rig.gear_teeth if tach_on_pinion else rig.pinion_teeth) // common,
+    )
+
+
+def _checked_averages(
+    name: str,
+    signal: ScannedSignal,
+    sample_rate_hz: float,
+    tach: TachAnalysis,
+    params: AnalysisParameters,
+    pinion_spr: int,
+    gear_spr: int,
+    pinion_per_tach_rev: float,
+    hunting_tach_revs: int,
+    block_samples: int,
+) -> AngleAverages:
+    """The channel's synchronous averages, refused when too many revolutions had to be dropped
+    or too few are left."""
     try:
         angle = angle_averages(
-            signal.samples, sample_rate_hz, pulse_times_s, ppr, pinion_spr, gear_spr,
-            pinion_per_tach_rev, hunting_tach_revs, block_samples,
+            signal.samples, sample_rate_hz, tach.pulse_times_s, tach.pulses_per_rev, pinion_spr,
+            gear_spr, pinion_per_tach_rev, hunting_tach_revs, block_samples,
             signal.defects, params.revolution_outlier_factor,
         )
     except ValueError as error:  # e.g. pulse times outside the record: tach and signal disagree
@@ -421,8 +517,14 @@ def _analyze_channel(
             f"only {revolutions} whole pinion revolutions (minimum {params.min_revolutions})"
             + (f"; {rejected} rejected" if rejected else "")
         )
-    average = angle.pinion_average
-    snr_db = sync_to_noise_db(float(np.var(average)), angle.residual_power, revolutions)
+    return angle
+
+
+def _channel_quality(angle: AngleAverages, tach: TachAnalysis, signal: ScannedSignal) -> ChannelQuality:
+    """The channel's data-quality score and what went into it (:func:`dsp.quality.quality_score`)."""
+    revolutions = angle.pinion_revolutions
+    rejected = angle.rejected_defective + angle.rejected_outliers
+    snr_db = sync_to_noise_db(float(np.var(angle.pinion_average)), angle.residual_power, revolutions)
     score = quality_score(
         revolutions=revolutions,
         sync_to_noise_db=snr_db,
@@ -430,72 +532,88 @@ def _analyze_channel(
         tach_repairs=len(tach.repairs),
         rejected_revolutions=rejected,
     )
-    quality = ChannelQuality(
+    return ChannelQuality(
         score=score.score,
         score_components=score.components(),
         sync_to_noise_db=snr_db,
         rejected_revolutions=rejected,
         rejected_defective_revolutions=angle.rejected_defective,
         rejected_outlier_revolutions=angle.rejected_outliers,
-        **counts,
+        **signal.defects.counts(),
     )
-    curves: dict[str, np.ndarray] = {
-        "pinion_average": average.astype(np.float32),
-        "speed_rpm": (tach.rev_speed_rpm * pinion_per_tach_rev).astype(np.float32),
-    }
 
-    raw_metrics = signal.raw_metrics
-    if not has_teeth:
-        metrics = {
+
+def _whole_shaft_channel(
+    name: str,
+    angle: AngleAverages,
+    signal: ScannedSignal,
+    speed_rpm: float,
+    samples_per_rev: int,
+    curves: dict[str, np.ndarray],
+    quality: ChannelQuality,
+) -> ChannelAnalysis:
+    """Without tooth counts: the shaft-synchronous average's metrics and the raw ones."""
+    average = angle.pinion_average
+    return ChannelAnalysis(
+        channel=name,
+        revolutions=angle.pinion_revolutions,
+        gear_revolutions=angle.pinion_revolutions,
+        speed_rpm=speed_rpm,
+        samples_per_rev=samples_per_rev,
+        metrics={
             "rms": float(rms(average)),
             "peak": float(peak(average)),
             "crest": float(crest_factor(average)),
             "kurtosis": float(kurtosis(average)),
-            **raw_metrics,
-        }
-        return ChannelAnalysis(
-            channel=name,
-            revolutions=revolutions,
-            gear_revolutions=revolutions,
-            speed_rpm=float(tach.mean_rpm * pinion_per_tach_rev),
-            samples_per_rev=pinion_spr,
-            metrics=metrics,
-            curves=curves,
-            quality=quality,
-        )
-
-    assert rig.pinion_teeth is not None and rig.gear_teeth is not None
-    pinion_teeth = rig.pinion_teeth
-    gear_average = angle.gear_average
-    tooth1_pitch_angle_deg = rig.tooth1_pitch_angle_deg
-    tooth_frame: dict[str, Any] = {"kind": "tachometer"}
-    fingerprints: dict[str, np.ndarray] = {}
-    frame_delay = 0.0  # the shift that placed the average in the tooth frame (tachless)
-    if frame_placement is None:
-        fingerprints = tach_frame_fingerprints(average, gear_average, pinion_teeth, rig.gear_teeth)
-    else:
-        placed = place_in_tooth_frame(
-            average, gear_average, pinion_teeth, rig.gear_teeth, frame_placement,
-            tach_tooth1_pitch_angle_deg=rig.tooth1_pitch_angle_deg,
-        )
-        average, gear_average = placed.pinion_average, placed.gear_average
-        tooth1_pitch_angle_deg, tooth_frame = placed.tooth1_pitch_angle_deg, placed.tooth_frame
-        fingerprints = placed.fingerprints
-        frame_delay = placed.pinion_delay_samples
-        if tooth_frame.get("kind") == "campaign":
-            # how the record's own average was moved into the campaign frame (samples of delay)
-            tooth_frame["pinion_delay_samples"] = round(float(frame_delay), 3)
-        curves["pinion_average"] = average.astype(np.float32)
-    regular = regular_signal(average, pinion_teeth, sidebands=params.difference_sidebands)
-    residual = residual_signal(average, pinion_teeth)
-    difference = difference_signal(average, pinion_teeth, sidebands=params.difference_sidebands)
-
-    window = params.mci_window_samples or params.samples_per_mesh
-    mci = moving_cepstrum_integral(
-        average, window, form=params.mci_form, median_width=params.mci_median_width
+            **signal.raw_metrics,
+        },
+        curves=curves,
+        quality=quality,
     )
+
+
+def _in_tooth_frame(
+    angle: AngleAverages,
+    pinion_teeth: int,
+    gear_teeth: int,
+    tach_tooth1_pitch_angle_deg: float,
+    frame_placement: _FramePlacement | None,
+) -> PlacedAverages:
+    """The averages in the tooth frame: the tach's as they are (with their fingerprints, which
+    found a mixed campaign's frame), a tach-less record's moved into the campaign's frame or
+    refused (:func:`place_in_tooth_frame`)."""
+    if frame_placement is None:
+        return PlacedAverages(
+            angle.pinion_average, angle.gear_average, tach_tooth1_pitch_angle_deg,
+            {"kind": "tachometer"},
+            tach_frame_fingerprints(angle.pinion_average, angle.gear_average, pinion_teeth,
+                                    gear_teeth),
+            0.0,
+        )
+    placed = place_in_tooth_frame(
+        angle.pinion_average, angle.gear_average, pinion_teeth, gear_teeth, frame_placement,
+        tach_tooth1_pitch_angle_deg=tach_tooth1_pitch_angle_deg,
+    )
+    if placed.tooth_frame.get("kind") == "campaign":
+        # how the record's own average was moved into the campaign frame (samples of delay)
+        placed.tooth_frame["pinion_delay_samples"] = round(float(placed.pinion_delay_samples), 3)
+    return placed
+
+
+def _tooth_results(
+    angle: AngleAverages,
+    mci_filtered: np.ndarray,
+    difference: np.ndarray,
+    pinion_teeth: int,
+    tooth1_pitch_angle_deg: float,
+    window: int,
+    params: AnalysisParameters,
+    frame_delay: float,
+) -> tuple[list[ToothResult], np.ndarray]:
+    """Per tooth: the MCI evidence with its standard error and score, the difference signal's
+    sector energy and kurtosis; and the scores."""
     evidence, evidence_se, scores = _tooth_evidence(
-        angle, mci.filtered, pinion_teeth, tooth1_pitch_angle_deg, window, params, frame_delay
+        angle, mci_filtered, pinion_teeth, tooth1_pitch_angle_deg, window, params, frame_delay
     )
     depths = np.maximum(evidence, 0.0)  # the displayed well depth (dsp.teeth.per_tooth_well_depth)
     energy, sector_kurtosis = per_tooth_difference_stats(
@@ -514,45 +632,7 @@ def _analyze_channel(
         )
         for k in range(pinion_teeth)
     ]
-    per_tooth_refused = tooth_frame.get("kind") == "refused"
-    average_metrics = gear_metrics(
-        average,
-        residual,
-        difference,
-        regular,
-        pinion_teeth,
-        na4_baseline_variance=baselines.na4_residual_variance,
-        nb4_baseline_variance=baselines.nb4_envelope_variance,
-    )
-    metrics = {key: float(value) for key, value in average_metrics.items()} | raw_metrics
-    curves.update(
-        {
-            "gear_average": gear_average.astype(np.float32),
-            "difference": difference.astype(np.float32),
-            "mci_raw": mci.raw.astype(np.float32),
-            "mci": mci.filtered.astype(np.float32),
-        }
-    )
-    return ChannelAnalysis(
-        channel=name,
-        revolutions=revolutions,
-        gear_revolutions=angle.gear_revolutions,
-        speed_rpm=float(tach.mean_rpm * pinion_per_tach_rev),
-        samples_per_rev=pinion_spr,
-        metrics=metrics,
-        # a refused tooth frame: the numbers would name the wrong teeth in the campaign's trends
-        teeth=[] if per_tooth_refused else teeth,
-        worst_tooth=(
-            None if per_tooth_refused else standout_tooth(scores, standout_threshold(pinion_teeth))
-        ),
-        curves=curves,
-        quality=quality,
-        baseline_stats=_baseline_stats(residual, average, pinion_teeth, baselines) | (
-            {} if per_tooth_refused else {"tooth1_pitch_angle_deg": float(tooth1_pitch_angle_deg)}
-        ),
-        tooth_frame=tooth_frame,
-        frame_fingerprints=fingerprints,
-    )
+    return teeth, scores
 
 
 def _tooth_evidence(
