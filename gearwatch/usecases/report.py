@@ -20,11 +20,32 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from gearwatch.floor.errors import InputError, NotFound
+from gearwatch.floor.indicators import indicator_info, indicator_unit
+from gearwatch.floor.version import code_version
+from storage.operator_queries import (
+    OperatorQueries,
+    mci_band,
+    relative_to_median,
+    tooth_sector_list,
+)
+from storage.repositories import (
+    AlarmRepository,
+    AlarmRuleRepository,
+    CampaignRepository,
+    RecordRepository,
+    RigRepository,
+    TrendRepository,
+)
+
+if TYPE_CHECKING:
+    from sqlalchemy.orm import Session
+
+    from storage.models import Rig
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
 CLASSIC_METRICS = ("rms", "kurtosis", "crest", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
@@ -182,33 +203,38 @@ def record_name(label: str, taken_at: dt.datetime) -> str:
     return f"{label or '(no label)'} — {taken_at:%Y-%m-%d %H:%M}"
 
 
-def collect(session: Any, rig_name: str) -> ReportData:
+def collect(session: Session, rig_name: str) -> ReportData:
     """Everything the report shows, read from the database."""
-    from gearwatch.floor.indicators import indicator_info, indicator_unit
-    from gearwatch.floor.version import code_version
-    from storage.operator_queries import (
-        OperatorQueries,
-        mci_band,
-        relative_to_median,
-        tooth_sector_list,
-    )
-    from storage.repositories import (
-        AlarmRepository,
-        AlarmRuleRepository,
-        CampaignRepository,
-        RecordRepository,
-        RigRepository,
-        TrendRepository,
-    )
-
     rig = RigRepository(session).get_by_name(rig_name)
     if rig is None:
         known = ", ".join(r.name for r in RigRepository(session).list()) or "none"
         raise NotFound(f"rig {rig_name!r} not found (rigs: {known})")
     queries = OperatorQueries(session)
+    rows = _record_rows(session, rig.id)
+    heat_indicator = queries.heat_map_indicator(rig.id)
+    matrix = TrendRepository(session).trend_matrix(
+        rig.id, heat_indicator, None, pinion_teeth=rig.pinion_teeth
+    )
+    channel_unit = queries.channel_unit(rig.id, matrix.channel)
+    alarms = _alarm_rows(session, rig.id, {r.record_id: r for r in rows})
+    campaigns = [(c.name, c.description) for c in CampaignRepository(session).list(rig.id)]
+    return ReportData(
+        rig=rig.name, pinion_teeth=rig.pinion_teeth, campaigns=campaigns,
+        generated_at=dt.datetime.now(dt.UTC).replace(microsecond=0),
+        code_version=code_version(), records=rows, heat_indicator=heat_indicator,
+        heat_title=indicator_info(heat_indicator).title,
+        heat_unit=indicator_unit(heat_indicator, channel_unit), heat_teeth=list(matrix.teeth),
+        heat_times=list(matrix.taken_at), heat_values=matrix.values, alarms=alarms,
+        trends=_alarm_trends(session, rig, alarms), metrics=_classic_metrics(queries, rig.id),
+        curves=_mci_curves(session, rig, matrix.channel, rows, alarms),
+    )
+
+
+def _record_rows(session: Session, rig_id: int) -> list[RecordRow]:
+    """One row per record of the rig: status, provenance, speed, quality, angle and frame."""
     records_repo = RecordRepository(session)
     rows: list[RecordRow] = []
-    for record in records_repo.list(rig_id=rig.id, limit=None):
+    for record in records_repo.list(rig_id=rig_id, limit=None):
         result = records_repo.current_result(record.id)
         quality = record.quality or {}
         score = quality.get("score")
@@ -227,18 +253,15 @@ def collect(session: Any, rig_name: str) -> ReportData:
                 angle=angle_and_frame(quality) if record.status == "accepted" else "—",
             )
         )
-    by_id = {r.record_id: r for r in rows}
+    return rows
 
-    heat_indicator = queries.heat_map_indicator(rig.id)
-    matrix = TrendRepository(session).trend_matrix(
-        rig.id, heat_indicator, None, pinion_teeth=rig.pinion_teeth
-    )
-    channel_unit = queries.channel_unit(rig.id, matrix.channel)
 
-    rules = {r.indicator: r for r in AlarmRuleRepository(session).list(rig.id)}
+def _alarm_rows(session: Session, rig_id: int, by_id: dict[int, RecordRow]) -> list[AlarmRow]:
+    """Every alarm of the rig, oldest first, with its rule's levels and its history."""
+    rules = {r.indicator: r for r in AlarmRuleRepository(session).list(rig_id)}
     alarm_repo = AlarmRepository(session)
     alarms: list[AlarmRow] = []
-    for alarm in sorted(alarm_repo.list(rig_id=rig.id, limit=None), key=lambda a: a.id):
+    for alarm in sorted(alarm_repo.list(rig_id=rig_id, limit=None), key=lambda a: a.id):
         try:
             info = indicator_info(alarm.indicator)
             whole, title = info.scope == "record", info.title
@@ -265,7 +288,12 @@ def collect(session: Any, rig_name: str) -> ReportData:
                 ],
             )
         )
+    return alarms
 
+
+def _alarm_trends(session: Session, rig: Rig, alarms: list[AlarmRow]) -> list[TrendSeries]:
+    """The trend of each alarmed tooth (or whole-record indicator), once per indicator and tooth."""
+    queries = OperatorQueries(session)
     trends: list[TrendSeries] = []
     seen: set[tuple[str, int | None]] = set()
     for row in alarms:
@@ -289,54 +317,58 @@ def collect(session: Any, rig_name: str) -> ReportData:
                 alarms=[a for a in alarms if (a.indicator, a.tooth) == key],
             )
         )
+    return trends
 
+
+def _classic_metrics(
+    queries: OperatorQueries, rig_id: int
+) -> dict[str, tuple[list[dt.datetime], list[float], str]]:
+    """Each classic whole-record metric the rig has: its times, values and unit."""
     metrics: dict[str, tuple[list[dt.datetime], list[float], str]] = {}
     for name in CLASSIC_METRICS:
         try:
-            m = queries.metric_matrix(rig.id, name)
+            m = queries.metric_matrix(rig_id, name)
         except InputError:
             continue
         if m.record_ids:
             metrics[name] = (
                 list(m.taken_at), [float(v) for v in m.values[:, 0]],
-                indicator_unit(name, queries.channel_unit(rig.id, m.channel)),
+                indicator_unit(name, queries.channel_unit(rig_id, m.channel)),
             )
+    return metrics
 
-    curves = None
+
+def _mci_curves(
+    session: Session, rig: Rig, channel: str | None, rows: list[RecordRow], alarms: list[AlarmRow]
+) -> CurveSet | None:
+    """The MCI curves of the first and last accepted records and of each alarm day, against the
+    healthy band (None without an accepted record or a per-tooth channel)."""
     accepted = [r for r in rows if r.status == "accepted"]
-    if accepted and matrix.channel is not None:
-        wanted: list[RecordRow] = [accepted[0]]
-        alarm_days = {a.raised_at.date() for a in alarms}
-        wanted += [r for r in accepted[1:-1] if r.taken_at.date() in alarm_days]
-        if accepted[-1] is not accepted[0]:
-            wanted.append(accepted[-1])
-        band = mci_band(session, rig.id, matrix.channel, relative=True)
-        found: list[tuple[str, list[float]]] = []
-        for day in wanted:
-            result = records_repo.current_result(day.record_id)
-            if result is None:
-                continue
-            data = records_repo.curves(result.id, channel=matrix.channel, names=["mci"])
-            if data:
-                found.append((record_name(day.label, day.taken_at),
-                              relative_to_median(data[0].values).tolist()))
-        if found:
-            curves = CurveSet(
-                sectors=tooth_sector_list(rig.pinion_teeth, rig.tooth1_pitch_angle_deg),
-                band=(band.lower.tolist(), band.upper.tolist()) if band else None,
-                band_records=band.records if band else 0,
-                curves=found,
-            )
-
-    campaigns = [(c.name, c.description) for c in CampaignRepository(session).list(rig.id)]
-    return ReportData(
-        rig=rig.name, pinion_teeth=rig.pinion_teeth, campaigns=campaigns,
-        generated_at=dt.datetime.now(dt.UTC).replace(microsecond=0),
-        code_version=code_version(), records=rows, heat_indicator=heat_indicator,
-        heat_title=indicator_info(heat_indicator).title,
-        heat_unit=indicator_unit(heat_indicator, channel_unit), heat_teeth=list(matrix.teeth),
-        heat_times=list(matrix.taken_at), heat_values=matrix.values, alarms=alarms,
-        trends=trends, metrics=metrics, curves=curves,
+    if not accepted or channel is None:
+        return None
+    records_repo = RecordRepository(session)
+    wanted: list[RecordRow] = [accepted[0]]
+    alarm_days = {a.raised_at.date() for a in alarms}
+    wanted += [r for r in accepted[1:-1] if r.taken_at.date() in alarm_days]
+    if accepted[-1] is not accepted[0]:
+        wanted.append(accepted[-1])
+    band = mci_band(session, rig.id, channel, relative=True)
+    found: list[tuple[str, list[float]]] = []
+    for day in wanted:
+        result = records_repo.current_result(day.record_id)
+        if result is None:
+            continue
+        data = records_repo.curves(result.id, channel=channel, names=["mci"])
+        if data:
+            found.append((record_name(day.label, day.taken_at),
+                          relative_to_median(data[0].values).tolist()))
+    if not found:
+        return None
+    return CurveSet(
+        sectors=tooth_sector_list(rig.pinion_teeth, rig.tooth1_pitch_angle_deg),
+        band=(band.lower.tolist(), band.upper.tolist()) if band else None,
+        band_records=band.records if band else 0,
+        curves=found,
     )
 
 
