@@ -59,6 +59,7 @@ from physics.reconcile.discrepancy import (
     with_line_misfit,
 )
 from physics.reconcile.fitter import (
+    _Accepted,
     _calibration_json,
     _covariance,
     _Evaluation,
@@ -77,6 +78,7 @@ from physics.reconcile.observables import (
 from physics.reconcile.progress import REFERENCE_SHARE, Progress, ProgressCallback, StageTicker
 from physics.reconcile.results import (
     ComplexArray,
+    Finding,
     FloatArray,
     MeasuredRecord,
     ReconcileOptions,
@@ -391,28 +393,11 @@ def _result(
         if not within
         else []
     )
-    # Model-form honesty (honesty.py): findings that compensate for each other are one defect
-    # whose shape the catalogue lacks; only its lead stays a named finding.
-    blocks, start = [], len(fitter.nuisance)
-    for a in accepted:
-        blocks.append((start, start + len(a.mechanism.steps)))
-        start += len(a.mechanism.steps)
-    correlation = (
-        block_correlation(_covariance(fitter, accepted, jacobian, evaluation, robust=False), blocks)
-        if accepted else np.zeros((0, 0))
+    final_findings, model_form = _model_form(
+        fitter, accepted, jacobian, evaluation, final_findings, remaining, within,
+        {"chi2_dof": chi2_dof_final, "chi2_dof_bounds": [1 - tolerance, 1 + tolerance]},
+        options, base.line_misfit,
     )
-    finding_dicts = [f.to_json() for f in final_findings]
-    provisional = {"chi2_dof": chi2_dof_final, "chi2_dof_bounds": [1 - tolerance, 1 + tolerance]}
-    keep, model_form = assess(finding_dicts, correlation, provisional, [_clean(m) for m in remaining], within,
-                              {"pinion": spec.pinion_teeth, "gear": spec.gear_teeth})
-    for defect in model_form["defects"]:
-        lead = final_findings[defect["finding_index"]]
-        lead.model_form = defect["message"]
-        defect["finding_index"] = keep.index(defect["finding_index"])
-    final_findings = [final_findings[i] for i in keep]
-    model_form["not_separable_here"] = _not_separable(fitter, options)
-    if base.line_misfit > 0:
-        model_form["mesh_line_form_error"] = line_form_error_statement(base.line_misfit)
     signal_energy = float(np.sum(np.abs(target[spec.used]) ** 2))
     baseline = {
         "mechanisms": _configured_mechanisms(model),
@@ -458,6 +443,43 @@ def _result(
             if name not in options.mechanisms
         },
     )
+
+
+def _model_form(
+    fitter: _Fitter,
+    accepted: list[_Accepted],
+    jacobian: FloatArray,
+    evaluation: _Evaluation,
+    final_findings: list[Finding],
+    remaining: list[dict[str, Any]],
+    within: bool,
+    provisional: dict[str, Any],
+    options: ReconcileOptions,
+    line_misfit: float,
+) -> tuple[list[Finding], dict[str, Any]]:
+    """Model-form honesty (honesty.py): findings that compensate for each other are one defect
+    whose shape the catalogue lacks; only its lead stays a named finding. Returns the findings
+    kept and the ``model_form`` block."""
+    spec = fitter.spec
+    blocks, start = [], len(fitter.nuisance)
+    for a in accepted:
+        blocks.append((start, start + len(a.mechanism.steps)))
+        start += len(a.mechanism.steps)
+    correlation = (
+        block_correlation(_covariance(fitter, accepted, jacobian, evaluation, robust=False), blocks)
+        if accepted else np.zeros((0, 0))
+    )
+    finding_dicts = [f.to_json() for f in final_findings]
+    keep, model_form = assess(finding_dicts, correlation, provisional, [_clean(m) for m in remaining], within,
+                              {"pinion": spec.pinion_teeth, "gear": spec.gear_teeth})
+    for defect in model_form["defects"]:
+        lead = final_findings[defect["finding_index"]]
+        lead.model_form = defect["message"]
+        defect["finding_index"] = keep.index(defect["finding_index"])
+    model_form["not_separable_here"] = _not_separable(fitter, options)
+    if line_misfit > 0:
+        model_form["mesh_line_form_error"] = line_form_error_statement(line_misfit)
+    return [final_findings[i] for i in keep], model_form
 
 
 def _spectrum(
