@@ -361,6 +361,9 @@ def synthetic_gear_record(
     >>> bool(np.allclose(rec.acceleration, expected))
     True
     """
+    # Long function: a known-answer generator whose stages (mesh and spall by pinion order, the
+    # gear's component, the speed profile, the tach, the noise) are written out in order, so that
+    # a test can read what the answer is.
     parameters = dict(locals())  # the arguments, before any other local exists
     if not duration_s > 0 or not sample_rate_hz > 0:
         raise ValueError("duration_s and sample_rate_hz must be positive")

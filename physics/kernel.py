@@ -404,6 +404,8 @@ def integrate(
     positions and sliding signs of the step itself), which keeps the mesh solve a symmetric
     rank-2 update; the reported friction force is recomputed from the solved state.
     """
+    # Long function: one compiled (numba) Newmark loop over the arrays it is given; its step is
+    # described in docs/simulator.md, "Integration".
     n = mass_diag.shape[0]
     h = step_s
     eta = p[P_ETA]

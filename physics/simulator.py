@@ -523,6 +523,9 @@ def simulate(
     >>> round(float(r.tach_pulse_times_s[1] - r.tach_pulse_times_s[0]), 3)
     0.06
     """
+    # Long function: flattens the model into the arrays the compiled integrator
+    # (physics.kernel.integrate) takes, calls it and turns its output into channels; each stage
+    # hands its arrays to the next, and a split would only pass them on.
     validate_model(model)
     if not seconds > 0:
         raise ValueError("seconds must be > 0")

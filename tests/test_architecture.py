@@ -4,7 +4,8 @@ statement, including those inside functions and under ``TYPE_CHECKING``).
 * Imports go only downwards: floor ← pure rooms ← ingest/storage ← use-cases ← doors; no door
   imports another door.
 * No import cycle between rooms, nor between modules at import time.
-* No module over 800 lines.
+* No module over 800 lines; no function over 100 lines of code without its reason, a
+  ``# Long function: …`` comment right after its docstring.
 """
 
 from __future__ import annotations
@@ -219,3 +220,48 @@ def test_no_module_over_800_lines() -> None:
         if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES
     }
     assert {name: n for name, n in long.items() if name not in TO_SPLIT} == {}
+
+
+MAX_FUNCTION_LINES = 100
+LONG_FUNCTION_REASON = "# Long function:"
+
+
+def long_functions_without_reason(source: str) -> list[str]:
+    """Functions whose code (the docstring not counted) is longer than
+    :data:`MAX_FUNCTION_LINES` and that do not say why in a ``# Long function: …`` comment
+    right after their docstring."""
+    tree = ast.parse(source)
+    lines = source.splitlines()
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            continue
+        first = node.body[0]
+        documented = (isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
+                      and isinstance(first.value.value, str))
+        code_start = (first.end_lineno or first.lineno) + 1 if documented else first.lineno
+        assert node.end_lineno is not None
+        if node.end_lineno - code_start + 1 <= MAX_FUNCTION_LINES:
+            continue
+        if not lines[code_start - 1].strip().startswith(LONG_FUNCTION_REASON):
+            found.append(f"{node.name} (line {node.lineno})")
+    return found
+
+
+def test_no_function_over_100_lines_without_its_reason() -> None:
+    missing = {
+        str(path.relative_to(ROOT)): names
+        for path in project_modules().values()
+        if (names := long_functions_without_reason(path.read_text(encoding="utf-8")))
+    }
+    assert missing == {}
+
+
+def test_the_long_function_check_sees_a_long_function() -> None:
+    body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES + 1))
+    plain = f'def f():\n    """Doc."""\n{body}\n'
+    assert long_functions_without_reason(plain) == ["f (line 1)"]
+    reasoned = f'def f():\n    """Doc."""\n    {LONG_FUNCTION_REASON} one flat list.\n{body}\n'
+    assert long_functions_without_reason(reasoned) == []
+    short = "def f():\n" + "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES)) + "\n"
+    assert long_functions_without_reason(short) == []

@@ -304,6 +304,8 @@ def solve_static_mesh(
         with the chunk's springs (stiffness and clearance per sample; out of contact: k = 0),
         for the nonlinear time stepping.
     """
+    # Long function: one loop over chunks of mesh positions whose springs are built and handed
+    # on chunk by chunk (``on_chunk``), so that a long record's memory stays bounded.
     force_all = np.broadcast_to(np.asarray(force_n, dtype=np.float64), mesh_position.shape)
     g = model.geometry
     z1, z2 = g.pinion_teeth, g.gear_teeth
@@ -488,6 +490,8 @@ def generate_record(model: IndependentModel, seed: int = 0) -> IndependentRecord
         (``truth['model']``) and derived value (contact ratio, mesh frequency, mesh mode,
         initial angle, speed range, artefact positions, noise and signal RMS, …).
     """
+    # Long function: one record's stages in order (kinematics, static mesh, force spectrum, path,
+    # artefacts, tach), drawing from six indexed random streams; the nested helpers share them.
     validate_model(model)
     derived = pair_derived(model)
     acq, op, g, tach = model.acquisition, model.operating, model.geometry, model.tachometer

@@ -279,6 +279,7 @@ def _finite(where: str, value: float) -> None:
 
 def validate_model(model: IndependentModel) -> None:
     """Raise :class:`IndependentModelError` naming the first field out of range."""
+    # Long function: a flat list of range checks, one per field, each naming its field.
     if model.dynamics not in ("linear", "nonlinear"):
         _fail("dynamics", f"must be linear or nonlinear, got {model.dynamics!r}")
     g = model.geometry

@@ -60,6 +60,8 @@ def random_model(
     friction μ 0–0.08; noise 0.3–3× the signal RMS; tooth-1 angle anywhere; dynamics linear
     (oversampling 4) or nonlinear (time-stepped, oversampling 8), one or the other at random.
     """
+    # Long function: the draws come from one stream in a fixed order (a seed names a rig); moved
+    # into helpers they would be easy to reorder, which would silently change every seed's rig.
     rng = np.random.default_rng(seed)
     z1 = int(pinion_teeth if pinion_teeth is not None else rng.integers(13, 81))
     z2 = int(gear_teeth if gear_teeth is not None else max(z1, round(z1 * rng.uniform(1.0, 3.5))))
