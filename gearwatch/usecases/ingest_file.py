@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import functools
+import inspect
 import logging
 import os
 from collections.abc import Callable
@@ -40,6 +41,20 @@ from gearwatch.floor.campaign import (
 )
 from gearwatch.floor.errors import InputError, NotFound
 from gearwatch.floor.results import AnalysisParameters, RecordAnalysis
+from gearwatch.usecases import running_baselines
+from gearwatch.usecases.alarms import evaluate_record
+from gearwatch.usecases.analyze import Baselines, analyze_record
+from gearwatch.usecases.tachless import fold_reference
+from gearwatch.usecases.tooth_change import refresh_tooth_change
+from ingest.sources import file_sha256, read_record, registered_suffixes
+from storage.repositories import (
+    AlarmRuleRepository,
+    CampaignRepository,
+    RecordRepository,
+    RigRepository,
+    json_safe,
+)
+from storage.tooth_frames import ToothFrameRepository
 
 logger = logging.getLogger(__name__)
 
@@ -76,8 +91,6 @@ def pipeline_analyzer(
     baselines: dict[str, dict[str, float]],
     tooth_frames: dict[str, Any] | None = None,
 ) -> RecordAnalysis:
-    from gearwatch.usecases.analyze import Baselines, analyze_record
-
     running = {
         channel: Baselines(
             na4_residual_variance=stats.get("residual_variance"),
@@ -92,16 +105,12 @@ def pipeline_analyzer(
 def _tooth_frame_arguments(session: Session, campaign_id: int, analyze: Analyzer) -> dict[str, Any]:
     """``tooth_frames=`` (the campaign's references, :mod:`storage.tooth_frames`) for an analyzer
     that takes it: tach-less records are then numbered in the campaign's tooth frame."""
-    import inspect
-
     try:
         accepts = "tooth_frames" in inspect.signature(analyze).parameters
     except (TypeError, ValueError):  # pragma: no cover - builtins without a signature
         accepts = False
     if not accepts:
         return {}
-    from storage.tooth_frames import ToothFrameRepository
-
     return {"tooth_frames": ToothFrameRepository(session).references(campaign_id)}
 
 
@@ -119,12 +128,7 @@ def parse_taken_at(text: str) -> dt.datetime:
 def record_suffix(path: str | Path) -> str:
     """The suffix the readers know the file by (``.csv.gz`` rather than ``.gz``)."""
     name = Path(path).name.lower()
-    try:
-        from ingest.sources import registered_suffixes
-
-        matches = [s for s in registered_suffixes() if name.endswith(s)]
-    except ImportError:  # pragma: no cover - ingest is part of the package
-        matches = []
+    matches = [s for s in registered_suffixes() if name.endswith(s)]
     if matches:
         return max(matches, key=len)
     return Path(path).suffix.lower()
@@ -163,8 +167,6 @@ def _expected_parameters(params: AnalysisParameters, campaign: CampaignConfig) -
 
 def _same_parameters(stored: dict[str, Any], expected: dict[str, Any]) -> bool:
     """Stored result parameters match on every key both sides know."""
-    from storage.repositories import json_safe
-
     expected = json_safe(expected)
     return all(stored[key] == value for key, value in expected.items() if key in stored)
 
@@ -174,8 +176,6 @@ def _baseline_stats(
 ) -> dict[str, dict[str, float]]:
     """Per accelerometer channel, the mean ``baseline_stats`` of the campaign's earlier
     accepted records (empty when there are none: NA4/NB4 then use the record's own variance)."""
-    from storage.repositories import RecordRepository
-
     records = RecordRepository(session)
     return {
         channel.name: records.mean_baseline_stats(campaign_id, channel.name, before=before)
@@ -203,9 +203,6 @@ def process_file(
     errors (bugs) are stored as rejected too, logged with their traceback and retried on the
     next ingestion.
     """
-    from ingest.sources import file_sha256
-    from storage.repositories import AlarmRuleRepository, CampaignRepository, RecordRepository
-
     path = Path(path)
     params = params or AnalysisParameters()
     analyze = analyzer or pipeline_analyzer
@@ -217,8 +214,6 @@ def process_file(
     is_new_rig = False
     stored_campaign = campaigns.get_by_name(campaign.id)
     if stored_campaign is None:
-        from storage.repositories import RigRepository
-
         is_new_rig = RigRepository(session).get_by_name(campaign.rig.id) is None
     stored_campaign = campaigns.ensure(campaign)
     if is_new_rig:
@@ -321,8 +316,6 @@ def _analyze(
 
     Reasons name the file as the operator knows it (``display_name``), not its content-addressed
     copy in the raw store."""
-    from ingest.sources import read_record
-
     attempt = _Attempt(taken_at)
     try:
         data = read_record(raw_location, campaign)
@@ -352,11 +345,6 @@ def _store(
     params: AnalysisParameters,
 ) -> JobResult:
     """Write the outcome of an attempt: rejection, or results (+ alarms on first acceptance)."""
-    from gearwatch.usecases.alarms import evaluate_record
-    from gearwatch.usecases.running_baselines import lock_rig, refresh_running_baselines
-    from gearwatch.usecases.tooth_change import refresh_tooth_change
-    from storage.repositories import RecordRepository, json_safe
-
     records = RecordRepository(session)
     analysis = attempt.analysis
     if analysis is None and record.status == "accepted" and records.current_result(record.id):
@@ -387,8 +375,9 @@ def _store(
     result = records.add_result(record, analysis)
     # NA4/NB4 of every accepted record follow the campaign's taken_at order, whatever order the
     # records arrived in (before the alarm evaluation, which then sees the rescaled values).
-    lock_rig(session, record.rig_id)
-    refresh_running_baselines(session, record.campaign_id)
+    running_baselines.lock_rig(session, record.rig_id)
+    # called through its module: the arrival-order test counts its rescalings there
+    running_baselines.refresh_running_baselines(session, record.campaign_id)
     refresh_tooth_change(session, record.campaign_id, record.id)  # the per-tooth change, same rule
     changes: tuple[Any, ...] = ()
     if first_acceptance:  # a record enters its campaign's tooth-frame reference once
@@ -401,9 +390,6 @@ def _store(
 
 def _fold_tooth_frames(session: Session, record: Any, analysis: RecordAnalysis) -> None:
     """Found or refine the campaign's tooth-frame references with this accepted record."""
-    from gearwatch.usecases.tachless import fold_reference
-    from storage.tooth_frames import ToothFrameRepository
-
     frames = ToothFrameRepository(session)
     current = frames.references(record.campaign_id)
     for channel in analysis.channels:
@@ -428,8 +414,6 @@ def reprocess_record(
     A new parameter set adds a result version (the old ones are kept); the same parameters
     again change nothing.
     """
-    from storage.repositories import CampaignRepository, RecordRepository
-
     records = RecordRepository(session)
     record = records.get(record_id)
     if not os.path.isfile(record.raw_location):
