@@ -11,11 +11,19 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from tqdm import tqdm
+
+from gearwatch.usecases.alarms import reevaluate_rig
+from gearwatch.usecases.ingest_file import parse_taken_at, process_file
+from ingest.manifest import load_manifest
+from storage.db import open_database, session_scope
+from storage.raw_store import RawStore
+from storage.repositories import AlarmRepository, AuditRepository, RigRepository
+
 if TYPE_CHECKING:
     from sqlalchemy.orm import Session, sessionmaker
 
     from gearwatch.floor.results import AnalysisParameters
-    from storage.raw_store import RawStore
 
 
 @dataclasses.dataclass
@@ -62,12 +70,6 @@ def replay_campaign(
     """Ingest every record of the manifest (those named in ``only``, when given), oldest first,
     one transaction per record; with ``reevaluate_alarms``, then recompute the rig's alarms from
     the current results (:func:`gearwatch.usecases.alarms.reevaluate_rig`, one transaction)."""
-    from tqdm import tqdm
-
-    from gearwatch.usecases.ingest_file import parse_taken_at, process_file
-    from ingest.manifest import load_manifest
-    from storage.db import session_scope
-
     campaign = load_manifest(manifest, check_files=False)
     entries = sorted(campaign.records, key=lambda e: parse_taken_at(e.taken_at))
     if only is not None:
@@ -100,9 +102,6 @@ def replay_campaign(
         )
     bar.close()
     if reevaluate_alarms:
-        from gearwatch.usecases.alarms import reevaluate_rig
-        from storage.repositories import AuditRepository, RigRepository
-
         with session_scope(session_factory) as session:
             rig = RigRepository(session).get_by_name(campaign.rig.id)
             if rig is not None:
@@ -119,9 +118,6 @@ def replay_campaign(
 
 
 def open_alarm_lines(session_factory: sessionmaker[Session], rig_name: str) -> list[str]:
-    from storage.db import session_scope
-    from storage.repositories import AlarmRepository, RigRepository
-
     with session_scope(session_factory) as session:
         rig = RigRepository(session).get_by_name(rig_name)
         if rig is None:
@@ -150,9 +146,6 @@ def replay_into_database(
 ) -> ReplaySummary:
     """:func:`replay_campaign` into the database at ``database_url`` (migrated first) with the
     raw store at ``raw_store_root``."""
-    from storage.db import open_database
-    from storage.raw_store import RawStore
-
     engine, factory = open_database(database_url)
     try:
         return replay_campaign(

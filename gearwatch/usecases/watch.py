@@ -13,6 +13,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from gearwatch.usecases.ingest_file import process_file
+from ingest.manifest import load_manifest
+from ingest.sources import registered_suffixes
+from storage.db import session_scope
+
 if TYPE_CHECKING:
     from sqlalchemy.orm import Session, sessionmaker
 
@@ -48,8 +53,6 @@ class FolderWatcher:
 
     def __init__(self, folder: Path, session_factory: sessionmaker[Session], raw_store: RawStore,
                  params: AnalysisParameters | None, *, analyzer: Any = None) -> None:
-        from ingest.sources import registered_suffixes
-
         self.folder = folder
         self.session_factory = session_factory
         self.raw_store = raw_store
@@ -64,10 +67,6 @@ class FolderWatcher:
 
     def poll(self, *, settle: bool = True) -> list[tuple[Path, JobResult]]:
         """One pass; returns (file, job result) for every file ingested in it."""
-        from gearwatch.usecases.ingest_file import process_file
-        from ingest.manifest import load_manifest
-        from storage.db import session_scope
-
         campaign = load_manifest(self.folder / "campaign.toml", check_files=False)
         done: list[tuple[Path, JobResult]] = []
         for path in candidate_files(self.folder, self.suffixes, (Path(self.raw_store.root),)):
