@@ -9,6 +9,7 @@ from typing import Any
 
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
+from sqlalchemy.engine import make_url
 
 from gearwatch.floor.settings import Settings, get_settings
 from gearwatch.floor.version import package_version
@@ -107,8 +108,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
 
 def _pool_options(url: str) -> dict[str, Any]:
-    from sqlalchemy.engine import make_url
-
     parsed = make_url(url)
     if parsed.get_backend_name() == "sqlite" and parsed.database in (None, "", ":memory:"):
         return {}  # one in-memory database per connection: no pool to size

@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+import sqlalchemy.exc as sa_exc
 from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
@@ -84,8 +85,6 @@ def _database_error(_request: Request, error: Exception) -> JSONResponse:
     """Safety net: values the database refuses are the caller's (422), a unique or foreign key
     violation that validation did not foresee is a conflict (409); an unreachable database 503.
     """
-    import sqlalchemy.exc as sa_exc
-
     if isinstance(error, sa_exc.DataError):
         logger.warning("database refused a value: %s", error)
         return error_response(

@@ -14,6 +14,8 @@ import logging
 import threading
 from typing import Any
 
+import sqlalchemy as sa
+
 from gearwatch.floor.errors import ServiceUnavailable
 from gearwatch.usecases.reconcile import run_reconciliation
 from storage.db import session_scope
@@ -69,8 +71,6 @@ def run_reserved(session_factory: Any, raw_store: Any, reconciliation_id: int) -
 def resume_interrupted(session_factory: Any, raw_store: Any) -> list[int]:
     """Start, in a background thread, the reconciliations a stopped process left ``queued``
     or ``running``; returns their ids."""
-    import sqlalchemy as sa
-
     with session_scope(session_factory) as session:
         ids = list(session.scalars(
             sa.select(Reconciliation.id)

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import threading
+import time
+from collections import OrderedDict
 from contextlib import AbstractContextManager
 from typing import Generic, TypeVar
 
+import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from service import schemas
@@ -70,8 +74,6 @@ def trend_version(session: Session, rig_pk: int) -> tuple[int, int]:
     Requested from the storage layer as ``TrendRepository.version(rig_id)``; kept here until
     it exists there.
     """
-    import sqlalchemy as sa
-
     ti = ToothIndicator
     row = session.execute(
         sa.select(sa.func.max(ti.id), sa.func.count()).where(ti.rig_id == rig_pk)
@@ -92,9 +94,6 @@ class ResponseCache(Generic[BodyT]):
     LOCK_STRIPES = 64
 
     def __init__(self, max_entries: int = 256) -> None:
-        import threading
-        from collections import OrderedDict
-
         self._entries: OrderedDict[object, tuple[object, BodyT, float]] = OrderedDict()
         self._groups: dict[object, tuple[object, float]] = {}
         self._lock = threading.Lock()
@@ -104,8 +103,6 @@ class ResponseCache(Generic[BodyT]):
 
     def fresh(self, key: object, max_age_s: float) -> tuple[object, BodyT] | None:
         """The entry if its version was confirmed less than ``max_age_s`` ago."""
-        import time
-
         with self._lock:
             entry = self._entries.get(key)
             if entry is None or time.monotonic() - entry[2] >= max_age_s:
@@ -115,8 +112,6 @@ class ResponseCache(Generic[BodyT]):
 
     def get(self, key: object, version: object) -> BodyT | None:
         """The body built from ``version`` (and mark it confirmed now), else ``None``."""
-        import time
-
         with self._lock:
             entry = self._entries.get(key)
             if entry is None or entry[0] != version:
@@ -126,8 +121,6 @@ class ResponseCache(Generic[BodyT]):
             return entry[1]
 
     def put(self, key: object, version: object, body: BodyT) -> None:
-        import time
-
         with self._lock:
             self._entries[key] = (version, body, time.monotonic())
             self._entries.move_to_end(key)
@@ -136,8 +129,6 @@ class ResponseCache(Generic[BodyT]):
 
     def group_version(self, group: object, max_age_s: float) -> object | None:
         """The group's data version if it was confirmed less than ``max_age_s`` ago."""
-        import time
-
         with self._lock:
             found = self._groups.get(group)
             if found is None or time.monotonic() - found[1] >= max_age_s:
@@ -146,8 +137,6 @@ class ResponseCache(Generic[BodyT]):
 
     def confirm(self, group: object, version: object) -> None:
         """Record ``version`` as the group's data version, confirmed now."""
-        import time
-
         with self._lock:
             self._groups[group] = (version, time.monotonic())
 
