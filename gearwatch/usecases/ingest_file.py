@@ -26,7 +26,7 @@ import logging
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import Session
@@ -55,6 +55,10 @@ from storage.repositories import (
     json_safe,
 )
 from storage.tooth_frames import ToothFrameRepository
+
+if TYPE_CHECKING:
+    from storage.models import Campaign as StoredCampaign
+    from storage.models import Record
 
 logger = logging.getLogger(__name__)
 
@@ -134,7 +138,7 @@ def record_suffix(path: str | Path) -> str:
     return Path(path).suffix.lower()
 
 
-def campaign_config(campaign: Any) -> CampaignConfig:
+def campaign_config(campaign: StoredCampaign) -> CampaignConfig:
     """Rebuild the manifest settings of a stored campaign (:class:`storage.models.Campaign`)."""
     data = campaign.manifest or {}
     rig = data.get("rig") or {"id": campaign.rig.name}
@@ -259,7 +263,7 @@ def process_file(
     return _store(session, record, attempt, campaign, params)
 
 
-def _current_id(records: Any, record_id: int) -> int | None:
+def _current_id(records: RecordRepository, record_id: int) -> int | None:
     current = records.current_result(record_id)
     return None if current is None else int(current.id)
 
@@ -388,7 +392,7 @@ def _store(
                      alarm_changes=changes)
 
 
-def _fold_tooth_frames(session: Session, record: Any, analysis: RecordAnalysis) -> None:
+def _fold_tooth_frames(session: Session, record: Record, analysis: RecordAnalysis) -> None:
     """Found or refine the campaign's tooth-frame references with this accepted record."""
     frames = ToothFrameRepository(session)
     current = frames.references(record.campaign_id)

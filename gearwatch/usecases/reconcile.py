@@ -392,12 +392,14 @@ def _one_line(error: BaseException) -> str:
     return " ".join(str(error).split()) or type(error).__name__
 
 
-def default_model(campaign: Any, sample_rate_hz: float) -> GearPairModel:
+def default_model(campaign: CampaignConfig, sample_rate_hz: float) -> GearPairModel:
     """The simulator defaults with the manifest rig's tooth counts, tooth-1 angle and sample rate."""
     from physics.config import GearPairModel
 
     model = GearPairModel()
     rig = campaign.rig
+    if rig.pinion_teeth is None or rig.gear_teeth is None:  # the callers refuse such rigs first
+        raise InputError(f"rig {rig.id!r} has no tooth counts: no simulator model to start from")
     geometry = dataclasses.replace(
         model.geometry, pinion_teeth=rig.pinion_teeth, gear_teeth=rig.gear_teeth
     )

@@ -628,7 +628,7 @@ def write_pdf(data: ReportData, out: Path) -> None:
         )
 
 
-def write(session: Any, rig: str, out: Path) -> ReportData:
+def write(session: Session, rig: str, out: Path) -> ReportData:
     """Collect and write the report; the format follows the suffix (``.pdf`` or ``.html``)."""
     suffix = out.suffix.lower()
     if suffix not in (".pdf", ".html", ".htm"):

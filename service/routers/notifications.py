@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, cast
 
 import sqlalchemy as sa
 from fastapi import APIRouter, Path, Query, Response
@@ -16,6 +16,14 @@ from service.schemas import NO_CONTROL_CHARACTERS
 from storage.outbox import NotificationRepository, global_webhook_url
 from storage.outbox_delivery import kick
 from storage.repositories import AuditRepository, RigRepository
+
+if TYPE_CHECKING:
+    from sqlalchemy.orm import Session
+
+    from storage.models import AlarmNotification, AlarmWebhook
+
+NotificationStatus = Literal["pending", "delivered", "failed"]
+"""As the table's CHECK constraint allows them (``storage.models.NOTIFICATION_STATUSES``)."""
 
 router = APIRouter(prefix="/api/v1", tags=["notifications"])
 
@@ -68,7 +76,7 @@ class NotificationOut(BaseModel):
     alarm_id: int | None
     webhook_id: int | None = Field(description="null: the global webhook.")
     url: str
-    status: Literal["pending", "delivered", "failed"]
+    status: NotificationStatus
     attempts: int
     next_attempt_at: dt.datetime
     last_error: str
@@ -82,17 +90,18 @@ class NotificationList(BaseModel):
     items: list[NotificationOut]
 
 
-def _webhook_out(rig: str, hook: Any) -> WebhookOut:
+def _webhook_out(rig: str, hook: AlarmWebhook) -> WebhookOut:
     return WebhookOut(
         id=hook.id, rig_id=rig, url=hook.url, description=hook.description,
         enabled=hook.enabled, created_by=hook.created_by, created_at=hook.created_at,
     )
 
 
-def _notification_out(db: Any, row: Any, names: dict[int, str]) -> NotificationOut:
+def _notification_out(db: Session, row: AlarmNotification, names: dict[int, str]) -> NotificationOut:
     return NotificationOut(
         id=row.id, rig_id=names.get(row.rig_id, str(row.rig_id)), alarm_id=row.alarm_id,
-        webhook_id=row.webhook_id, url=row.url, status=row.status, attempts=row.attempts,
+        webhook_id=row.webhook_id, url=row.url, attempts=row.attempts,
+        status=cast(NotificationStatus, row.status),  # a CHECK constraint in the table; pydantic checks it too
         next_attempt_at=row.next_attempt_at, last_error=row.last_error,
         created_at=row.created_at, delivered_at=row.delivered_at, payload=row.payload,
         attempt_log=[
@@ -175,7 +184,7 @@ def list_notifications(
     _caller: OperatorKey,
     rig_id: RigFilter = None,
     alarm_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
-    status: Annotated[Literal["pending", "delivered", "failed"] | None, Query()] = None,
+    status: Annotated[NotificationStatus | None, Query()] = None,
     limit: Limit = 100,
     offset: Offset = 0,
 ) -> NotificationList:

@@ -166,3 +166,13 @@ def test_alarm_changes_are_e_mailed_through_a_real_smtp_server(
     assert "Dashboard: http" in mail.get_payload()
     assert [n["url"] for n in items] == ["mailto:shift@rig-hall.test"]
     assert items[0]["status"] == "delivered" and items[0]["attempt_log"][0]["status_code"] == 250
+
+
+def test_the_api_status_values_are_the_tables() -> None:
+    """The REST model's statuses and the table's CHECK constraint name the same three."""
+    from typing import get_args
+
+    from service.routers.notifications import NotificationStatus
+    from storage.models import NOTIFICATION_STATUSES
+
+    assert get_args(NotificationStatus) == NOTIFICATION_STATUSES
