@@ -146,6 +146,20 @@ reference's own tooth-specific spectrum over the scatter): project worse than th
 and the Eckart scores per tooth: project 88 / 94 %, right tooth 92 %, 6 healthy; independent
 13 / 27 / 50 %, 1 healthy.
 
+Re-run 2026-11-28 (second session) on both parts, unchanged code: every figure above came out the
+same. Then, with both parts spent, the three healthy-campaign alarms of the project generator were
+looked at: two are ``score`` alarms raised by its CUSUM (seeds 40027 tooth 21 on day 4, score 9.6;
+40091 teeth 2 and 24 on days 5–6, 6–9) while ``change`` stayed below 2 on those teeth; the third
+is a ``change`` alarm (50153, tooth 8 at 5.2 on its first scored day). Dropping a ``score`` opening
+when the same day's ``change`` on the tooth and its neighbours stays below 2 (offline, on the saved
+per-day values) leaves 1 of 200 healthy campaigns alarmed instead of 3, with the same detections
+(97 / 100 / 100 %, right tooth 98 %) on the project generator and no change on the independent
+one (12 / 23 / 38 %, 44 %, 1 of 200). Not built: dropping an opening leaves the track in an
+alarm state nobody sees, and holding it back instead would let seed 40027 open a day later (its
+``change`` is 2.5 on day 5) — what the rule should mean needs its own study, and ``change`` values
+are rewritten when a late record arrives, so the gate would need the ``score`` tracks replayed
+with them to keep the outcome independent of arrival order.
+
 Measured 2026-11-27 (second session), 2-core machine, after the revision chosen on ``tune`` and
 ``tune-2`` (the change's 3 reference records and loudness step, :mod:`dsp.toothchange`; the
 score's baseline centre never below 0, :data:`detection.alarms.RECORD_RELATIVE_INDICATORS`;
