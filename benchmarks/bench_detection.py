@@ -149,7 +149,8 @@ and the Eckart scores per tooth: project 88 / 94 %, right tooth 92 %, 6 healthy;
 Re-run 2026-11-28 (second session) on both parts, unchanged code: every figure above came out the
 same. Then, with both parts spent, the three healthy-campaign alarms of the project generator were
 looked at: two are ``score`` alarms raised by its CUSUM (seeds 40027 tooth 21 on day 4, score 9.6;
-40091 teeth 2 and 24 on days 5–6, 6–9) while ``change`` stayed below 2 on those teeth; the third
+40091 teeth 2 and 24 on days 5 and 6, scores 6.2–9.1) while ``change`` was below 2 on those teeth
+on the opening day; the third
 is a ``change`` alarm (50153, tooth 8 at 5.2 on its first scored day). Dropping a ``score`` opening
 when the same day's ``change`` on the tooth and its neighbours stays below 2 (offline, on the saved
 per-day values) leaves 1 of 200 healthy campaigns alarmed instead of 3, with the same detections
