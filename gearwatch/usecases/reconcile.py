@@ -10,19 +10,37 @@ JSON, the HTML report and the updated configuration. It commits twice — ``runn
 computation (which can take minutes and must not hold a write transaction) and the outcome
 after. Bad input (an unreadable file, no tach pulses, a record too short for a hunting period)
 ends as ``failed`` with its reason; the row is never lost.
+
+The physics (``physics.config``, ``physics.simulator``, ``physics.reconcile``) is imported inside
+the functions that use it: it loads numba and its compiled kernels (about half a second), and the
+service imports this module at start-up for its routes, most of which never reconcile.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import logging
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from sqlalchemy.orm import Session, sessionmaker
 
+from dsp.tach import TachometerError, pulse_times_from_waveform
 from gearwatch.floor.defaults import MIN_SAMPLES_PER_MESH, RECONCILE_MAX_FINDINGS, SAMPLES_PER_MESH
 from gearwatch.floor.errors import InputError, NotFound
+from gearwatch.floor.version import code_version
+from gearwatch.usecases.ingest_file import campaign_config, record_suffix
+from ingest.sources import read_record
+from storage.db import session_scope
+from storage.raw_store import RawStore
+from storage.repositories import (
+    CampaignRepository,
+    ReconciliationRepository,
+    RecordRepository,
+    RigRepository,
+)
 
 if TYPE_CHECKING:
     from gearwatch.floor.campaign import Campaign as CampaignConfig
@@ -30,7 +48,6 @@ if TYPE_CHECKING:
     from physics.config import GearPairModel
     from physics.reconcile import MeasuredRecord, ReconciliationResult
     from storage.models import Reconciliation, Record
-    from storage.raw_store import RawStore
 
 logger = logging.getLogger(__name__)
 
@@ -38,7 +55,6 @@ logger = logging.getLogger(__name__)
 @dataclasses.dataclass(frozen=True)
 class ReconcileRequest:
     """What a caller asks for (the REST body, the job's options)."""
-
     model_toml: str | None = None
     reference_record_id: int | None = None
     channel: str | None = None
@@ -49,7 +65,6 @@ class ReconcileRequest:
     max_findings: int = RECONCILE_MAX_FINDINGS
     forward_oversampling: int | None = None
     """Integrator steps per sample of the fitting simulations (None: the model's)."""
-
     def options(self) -> dict[str, Any]:
         """The stored ``options`` (everything but the model and the reference)."""
         return {
@@ -107,9 +122,6 @@ def check_numbers(request: ReconcileRequest) -> None:
 
 
 def _campaign_of(session: Session, record: Record) -> CampaignConfig:
-    from gearwatch.usecases.ingest_file import campaign_config
-    from storage.repositories import CampaignRepository
-
     return campaign_config(CampaignRepository(session).get(record.campaign_id))
 
 
@@ -138,9 +150,6 @@ def _channel_of(campaign: CampaignConfig, channel: str | None, what: str) -> str
 def raw_path(record: Record, raw_store: RawStore | str | Path | None) -> Path:
     """Where the record's kept raw file is: its stored location, else the same content in
     ``raw_store`` (a worker may mount the shared store elsewhere)."""
-    from gearwatch.usecases.ingest_file import record_suffix
-    from storage.raw_store import RawStore
-
     location = Path(record.raw_location)
     if location.is_file():
         return location
@@ -167,9 +176,6 @@ def create_reconciliation(
     rig, unknown mechanisms, a rig without tooth counts, a campaign without a pinion tachometer
     or an unknown channel.
     """
-    from gearwatch.floor.version import code_version
-    from storage.repositories import ReconciliationRepository, RecordRepository, RigRepository
-
     records = RecordRepository(session)
     record = records.get(record_id)
     reference = None
@@ -220,7 +226,6 @@ def create_reconciliation(
 @dataclasses.dataclass(frozen=True)
 class _Inputs:
     """What the computation needs, read in the job's first transaction."""
-
     record_path: Path
     record_name: str
     campaign: Any
@@ -241,10 +246,6 @@ def run_reconciliation(
     files are looked up when their stored location is not readable here. A reconciliation that
     already finished is left alone (a message delivered twice).
     """
-    from gearwatch.floor.version import code_version
-    from storage.db import session_scope
-    from storage.repositories import ReconciliationRepository
-
     with session_scope(session_factory) as session:
         rows = ReconciliationRepository(session)
         row = rows.get(reconciliation_id)
@@ -285,8 +286,6 @@ def run_reconciliation(
 
 
 def _inputs(session: Session, row: Reconciliation, raw_store: RawStore | str | Path | None) -> _Inputs:
-    from storage.repositories import RecordRepository
-
     records = RecordRepository(session)
     record = records.get(row.record_id)
     options = dict(row.options or {})
@@ -321,11 +320,6 @@ new stage), in its ``result`` column under ``progress`` until the result replace
 
 def _progress_writer(session_factory: sessionmaker[Session], reconciliation_id: int) -> Any:
     """A :mod:`physics.reconcile.progress` callback that stores the progress on the row."""
-    import time
-
-    from storage.db import session_scope
-    from storage.repositories import ReconciliationRepository
-
     last_at = [0.0]
     last_stage = [""]
 
@@ -347,7 +341,6 @@ def _progress_writer(session_factory: sessionmaker[Session], reconciliation_id: 
 def _compute(inputs: _Inputs, progress: Any = None) -> tuple[str, tuple[dict[str, Any], str, str]]:
     """Read, reconcile, render. Returns the model TOML used and (JSON, HTML, updated TOML);
     raises InputError/ValueError for input the reconciliation cannot use."""
-    from ingest.sources import read_record
     from physics.config import model_to_toml
     from physics.reconcile import ReconcileOptions, reconcile
     from physics.reconcile.report import html_report
@@ -410,8 +403,6 @@ def default_model(campaign: CampaignConfig, sample_rate_hz: float) -> GearPairMo
 
 def measured_record(path: str | Path, campaign: CampaignConfig, channel: str | None) -> MeasuredRecord:
     """Read a record and return a :class:`MeasuredRecord` of one accelerometer channel."""
-    from ingest.sources import read_record
-
     record_path = Path(path)
     if not record_path.is_file():
         raise InputError(f"{record_path}: no such record file")
@@ -423,9 +414,6 @@ def measured_from_record(
 ) -> MeasuredRecord:
     """The :class:`MeasuredRecord` of one accelerometer channel of an already-read record
     (:class:`gearwatch.floor.campaign.RecordData`); ``source`` names the record in error messages."""
-    import numpy as np
-
-    from dsp.tach import TachometerError, pulse_times_from_waveform
     from physics.reconcile import MeasuredRecord
 
     tach = campaign.tachometer
