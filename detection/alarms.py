@@ -63,7 +63,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
-from scipy import stats
 
 Direction = Literal["higher_is_worse", "lower_is_worse"]
 Level = Literal["normal", "warning", "alarm"]
@@ -234,6 +233,8 @@ def small_sample_factor(count: int) -> float:
     >>> round(small_sample_factor(3), 2), round(small_sample_factor(8), 2)
     (2.2, 1.21)
     """
+    from scipy import stats  # here, not at the top: see learn_baseline
+
     return float(stats.t.ppf(0.975, max(count, 2) - 1) / stats.norm.ppf(0.975))
 
 
@@ -258,6 +259,10 @@ def learn_baseline(
         raise ValueError("a baseline needs at least one finite value")
     centre = float(np.median(array))
     floor = max(spread_floor_fraction * abs(centre), spread_floor_abs)
+    # scipy.stats is imported here, not at the top: it takes ~0.6 s, and storage (so every CLI
+    # command that reads the database, and the service) imports this module
+    from scipy import stats
+
     spread = float(stats.median_abs_deviation(array, scale="normal"))
     if widen_small_samples:
         spread *= small_sample_factor(int(array.size))
