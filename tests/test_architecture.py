@@ -265,3 +265,28 @@ def test_the_long_function_check_sees_a_long_function() -> None:
     assert long_functions_without_reason(reasoned) == []
     short = "def f():\n" + "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES)) + "\n"
     assert long_functions_without_reason(short) == []
+
+
+@pytest.mark.parametrize(
+    ("module", "must_not_load"),
+    [
+        # `gearwatch --help` answers without any numerical or database library
+        ("gearwatch.cli.main", ("numpy", "scipy", "sqlalchemy", "numba")),
+        # storage, the service and every database command: scipy.stats alone took ~0.6 s there
+        ("storage.repositories", ("scipy", "numba")),
+        ("service.app", ("scipy", "numba", "matplotlib")),
+        # the per-record chain with a tach: no scipy, no numba (ARCHITECTURE.md, start-up)
+        ("gearwatch.usecases.analyze", ("scipy", "numba", "sqlalchemy")),
+    ],
+)
+def test_start_up_imports_stay_light(module: str, must_not_load: tuple[str, ...]) -> None:
+    """What importing a door or a room loads, in a fresh interpreter (the lazy imports that
+    ARCHITECTURE.md's start-up paragraph promises)."""
+    import subprocess
+    import sys
+
+    code = (f"import sys, {module}; "
+            f"print(' '.join(m for m in {must_not_load!r} if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, cwd=ROOT)
+    assert done.stdout.strip() == "", f"importing {module} loaded {done.stdout.strip()}"
