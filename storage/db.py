@@ -16,8 +16,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import sqlalchemy as sa
+import sqlalchemy.exc as sa_exc
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import ArgumentError
 from sqlalchemy.orm import Session, sessionmaker
+
+from gearwatch.floor.errors import DatabaseUnavailable, InputError
 
 DEFAULT_DATABASE_URL = "sqlite:///gearwatch.db"
 ALEMBIC_DIR = Path(__file__).resolve().parent.parent / "alembic"
@@ -66,10 +70,6 @@ def database_url(url: str) -> sa.URL:
     """``url`` parsed, with PostgreSQL's bare schemes (``postgres://``, ``postgresql://``, as
     Heroku-style and libpq URLs write them) on the installed psycopg 3 driver. Anything else
     gearwatch cannot open is an :class:`InputError` naming the scheme (password hidden)."""
-    from sqlalchemy.exc import ArgumentError
-
-    from gearwatch.floor.errors import InputError
-
     try:
         parsed = make_url(url)
     except ArgumentError:
@@ -87,10 +87,6 @@ def database_url(url: str) -> sa.URL:
 def database_unavailable(error: Exception) -> GearwatchError | None:
     """A :class:`~gearwatch.floor.errors.DatabaseUnavailable` for an error that says the database
     cannot be reached or went away (else ``None``); its message is one line."""
-    import sqlalchemy.exc as sa_exc
-
-    from gearwatch.floor.errors import DatabaseUnavailable, InputError
-
     if isinstance(error, sa_exc.NoSuchModuleError | sa_exc.ArgumentError):
         return InputError(f"cannot open the database: {error} (use {SUPPORTED_URLS})")
     if not isinstance(error, sa_exc.OperationalError | sa_exc.InterfaceError |
@@ -109,7 +105,7 @@ def session_factory(engine: sa.Engine) -> sessionmaker[Session]:
 
     Their alarm state changes queue webhook notifications in the same transaction
     (:mod:`storage.outbox`), delivered after the commit."""
-    from storage import outbox
+    from storage import outbox  # here: outbox → outbox_delivery → db would be an import cycle
 
     factory = sessionmaker(bind=engine, expire_on_commit=False)
     outbox.install(factory)
@@ -132,7 +128,7 @@ def session_scope(factory: sessionmaker[Session]) -> Iterator[Session]:
 
 def alembic_config(engine_or_url: sa.Engine | str) -> Any:
     """An alembic ``Config`` for the migration scripts, bound to an engine or URL."""
-    from alembic.config import Config
+    from alembic.config import Config  # alembic only where a migration runs
 
     config = Config()
     config.set_main_option("script_location", str(ALEMBIC_DIR))

@@ -15,10 +15,18 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from gearwatch.floor.defaults import MAD_TO_SIGMA
-from gearwatch.floor.errors import InputError
+from gearwatch.floor.errors import InputError, NotFound
+from gearwatch.floor.indicators import all_indicators, indicator_info, indicator_unit
 from gearwatch.floor.results import METRIC_NAMES
-from storage.models import Alarm, Campaign, Channel, Record, RecordMetric, ToothIndicator
-from storage.repositories import TrendMatrix
+from storage.models import Alarm, Campaign, Channel, Record, RecordMetric, Rig, ToothIndicator
+from storage.repositories import (
+    AlarmRepository,
+    AlarmRuleRepository,
+    RecordRepository,
+    RigRepository,
+    TrendMatrix,
+    TrendRepository,
+)
 
 
 @dataclass(frozen=True)
@@ -198,8 +206,6 @@ def mci_band(session: Session, rig_pk: int, channel: str, *, relative: bool = Fa
     revolution changes the length). ``None`` with fewer than :data:`MIN_BAND_RECORDS`.
     ``relative``: each curve minus its own median first (:func:`relative_to_median`).
     """
-    from storage.repositories import AlarmRuleRepository, RecordRepository
-
     rule = AlarmRuleRepository(session).get_for(rig_pk, "mci_depth")
     count = rule.baseline_records if rule is not None else DEFAULT_BASELINE_RECORDS
     records = RecordRepository(session)
@@ -253,9 +259,6 @@ def trend_data(
     """The trend of any stored indicator of a rig (the REST trend answer, as plain values):
     a records × teeth matrix; a whole-record indicator has one column whose tooth is ``None``
     (never 0). Records carry their label; the answer its unit and title."""
-    from gearwatch.floor.indicators import all_indicators, indicator_info, indicator_unit
-    from storage.repositories import TrendRepository
-
     if indicator not in all_indicators():
         raise InputError(
             f"unknown indicator {indicator!r} (known: {', '.join(all_indicators())})"
@@ -309,9 +312,6 @@ def alarm_data(session: Session, alarm: Alarm, cache: dict[str, Any] | None = No
     """One alarm as the operator sees it: rig and campaign names, channel, tooth (``None`` for a
     whole-record indicator — inside, those are tracked as tooth 0), unit, the raising record's
     label, values, acknowledgement."""
-    from gearwatch.floor.indicators import indicator_info, indicator_unit
-    from storage.models import Rig
-
     cache = {} if cache is None else cache
     rigs = cache.setdefault("rigs", {})
     if alarm.rig_id not in rigs:
@@ -368,9 +368,6 @@ def alarm_list(
 ) -> list[dict[str, Any]]:
     """Alarms newest first (:func:`alarm_data`), optionally of one rig (``NotFound`` if
     unknown)."""
-    from gearwatch.floor.errors import NotFound
-    from storage.repositories import AlarmRepository, RigRepository
-
     rig_pk = None
     if rig_name is not None:
         rig = RigRepository(session).get_by_name(rig_name)

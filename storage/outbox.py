@@ -16,11 +16,13 @@ import builtins
 import datetime as dt
 import os
 from typing import Any
+from urllib.parse import quote, urlsplit
 
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from gearwatch.floor.errors import Conflict, InputError, NotFound
+from gearwatch.floor.indicators import indicator_info, indicator_unit
 from storage.models import (
     Alarm,
     AlarmEvent,
@@ -33,6 +35,7 @@ from storage.models import (
     Rig,
     utcnow,
 )
+from storage.repositories import json_safe
 
 GLOBAL_WEBHOOK_ENV = "GEARWATCH_ALARM_WEBHOOK_URL"
 GLOBAL_EMAIL_ENV = "GEARWATCH_ALARM_EMAIL_TO"
@@ -60,8 +63,6 @@ def global_destinations() -> builtins.list[str]:
 
 def dashboard_link(rig_name: str, alarm_id: int) -> str:
     """The dashboard opened on the rig and the alarm (``GEARWATCH_DASHBOARD_URL``)."""
-    from urllib.parse import quote
-
     base = os.environ.get(DASHBOARD_URL_ENV, "").strip() or DEFAULT_DASHBOARD_URL
     if not base.endswith("/"):
         base += "/"
@@ -70,8 +71,6 @@ def dashboard_link(rig_name: str, alarm_id: int) -> str:
 
 def check_url(url: str) -> str:
     """An http(s) URL or a ``mailto:`` address, else :class:`InputError`."""
-    from urllib.parse import urlsplit
-
     parts = urlsplit(url)
     if parts.scheme == "mailto" and "@" in parts.path:
         return url
@@ -86,8 +85,6 @@ def _iso(value: dt.datetime | None) -> str | None:
 
 def alarm_payload(session: Session, alarm: Alarm, event: AlarmEvent) -> dict[str, Any]:
     """The JSON body of one alarm state change."""
-    from gearwatch.floor.indicators import indicator_info, indicator_unit
-
     rig = session.get(Rig, alarm.rig_id)
     channel = session.get(Channel, alarm.channel_id)
     campaign = session.get(Campaign, channel.campaign_id) if channel is not None else None
@@ -128,8 +125,6 @@ def alarm_payload(session: Session, alarm: Alarm, event: AlarmEvent) -> dict[str
 
 def queue_alarm_notifications(session: Session, _flush_context: Any, _instances: Any) -> None:
     """``before_flush`` hook: an outbox row per new alarm event and destination."""
-    from storage.repositories import json_safe
-
     events = [obj for obj in session.new if isinstance(obj, AlarmEvent)]
     if not events:
         return
@@ -337,7 +332,7 @@ def install(factory: Any) -> None:
 
 def _after_commit(session: Session) -> None:
     if session.info.pop(QUEUED_FLAG, False):
-        from storage.outbox_delivery import kick
+        from storage.outbox_delivery import kick  # here: outbox_delivery imports this module
 
         bind = session.get_bind()
         engine = bind if isinstance(bind, sa.Engine) else bind.engine

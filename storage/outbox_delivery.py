@@ -17,12 +17,15 @@ import datetime as dt
 import json
 import logging
 import os
+import smtplib
 import threading
 import time
 import urllib.error
 import urllib.request
 from dataclasses import dataclass
+from email.message import EmailMessage
 from typing import Any
+from urllib.parse import unquote, urlsplit
 
 import sqlalchemy as sa
 
@@ -82,10 +85,6 @@ def mail_body(payload: dict[str, Any]) -> str:
 
 def send_mail(address: str, payload: dict[str, Any], timeout_s: float = TIMEOUT_S) -> PostOutcome:
     """Send one alarm change to ``address`` through the SMTP server of ``GEARWATCH_SMTP_URL``."""
-    import smtplib
-    from email.message import EmailMessage
-    from urllib.parse import unquote, urlsplit
-
     server = urlsplit(os.environ.get(SMTP_URL_ENV, "").strip() or "smtp://127.0.0.1:25")
     message = EmailMessage()
     message["Subject"] = mail_subject(payload)
@@ -145,6 +144,7 @@ def post_json(url: str, payload: dict[str, object], timeout_s: float = TIMEOUT_S
 
 def deliver_due(engine: sa.Engine, now: dt.datetime | None = None) -> int:
     """One pass: attempt every due notification once; returns how many were attempted."""
+    # here, not at the top: db → outbox → this module would be an import cycle
     from storage.db import session_factory, session_scope
     from storage.outbox import NotificationRepository
 

@@ -10,7 +10,7 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.orm import selectinload
 
-from detection.alarms import RULE_SETTING_NAMES
+from detection.alarms import RULE_SETTING_NAMES, RuleSettings, TrackState, acknowledge
 from detection.default_rules import DEFAULT_RULES
 from gearwatch.floor.errors import Conflict, InputError
 from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
@@ -53,8 +53,6 @@ class AlarmRuleRepository(Repository[AlarmRule]):
 
     @staticmethod
     def _validate(indicator: str, values: dict[str, Any]) -> None:
-        from detection.alarms import RuleSettings
-
         if indicator not in ALARM_INDICATORS:
             raise InputError(
                 f"unknown indicator {indicator!r} (known: {', '.join(ALARM_INDICATORS)})"
@@ -310,8 +308,6 @@ class AlarmRepository(Repository[Alarm]):
     ) -> Alarm:
         """An operator acknowledges an open alarm (``Conflict`` if cleared or already
         acknowledged). The alarm's track remembers it, so only an escalation re-alarms."""
-        from detection.alarms import TrackState, acknowledge
-
         alarm = self.get(alarm_id)
         if alarm.state == "cleared":
             raise Conflict(f"alarm {alarm_id} is cleared")
