@@ -12,8 +12,8 @@ after. Bad input (an unreadable file, no tach pulses, a record too short for a h
 ends as ``failed`` with its reason; the row is never lost.
 
 The physics (``physics.config``, ``physics.simulator``, ``physics.reconcile``) is imported inside
-the functions that use it: it loads numba and its compiled kernels (about half a second), and the
-service imports this module at start-up for its routes, most of which never reconcile.
+the functions that use it: it loads scipy and the simulator (0.7–1.2 s on a 2-core machine), and
+the service imports this module at start-up for its routes, most of which never reconcile.
 """
 
 from __future__ import annotations
