@@ -19,6 +19,7 @@ from gearwatch.floor.defaults import (
     RECONCILE_MAX_FINDINGS,
     REVOLUTION_OUTLIER_FACTOR,
     SAMPLES_PER_MESH,
+    SPIKE_FACTOR,
 )
 from gearwatch.floor.results import METRIC_NAMES, STORED_TOOTH_INDICATORS
 
@@ -274,6 +275,7 @@ class AnalysisParametersIn(BaseModel):
     mci_median_width: int | None = Field(default=None, ge=1, le=131071)
     max_speed_variation: float = Field(default=MAX_SPEED_VARIATION, gt=0, le=10)
     glitch_range_factor: float = Field(default=GLITCH_RANGE_FACTOR, gt=0, le=1e6)
+    spike_factor: float = Field(default=SPIKE_FACTOR, ge=0, le=1e6)
     revolution_outlier_factor: float = Field(default=REVOLUTION_OUTLIER_FACTOR, gt=1, le=1e6)
     min_revolutions: int = Field(default=20, ge=2, le=1_000_000)
     min_speed_rpm: float = Field(default=1.0, gt=0, le=1e6)

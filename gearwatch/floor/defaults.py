@@ -33,6 +33,11 @@ anti-alias band (set by the lowest speed) cuts the orders of the fastest revolut
 GLITCH_RANGE_FACTOR = 5.0
 """A sample beyond the 0.1–99.9 % quantile range widened this many times on each side is a glitch."""
 
+SPIKE_FACTOR = 2.0
+"""A single sample that stands this many 0.1–99.9 % quantile ranges away from the median of its
+four neighbours, while they stay close to that median, is a glitch (an isolated spike: about
+13 σ for Gaussian noise, 4 amplitudes for a sine); 0 turns the test off."""
+
 REVOLUTION_OUTLIER_FACTOR = 4.0
 """A revolution whose residual peak or residual energy exceeds this multiple of the median over
 the revolutions is dropped from the average."""

@@ -19,6 +19,7 @@ from gearwatch.floor.defaults import (
     REVOLUTION_OUTLIER_FACTOR,
     SAMPLES_PER_MESH,
     SAMPLES_PER_REV_WITHOUT_TEETH,
+    SPIKE_FACTOR,
 )
 
 MciForm = Literal["robust", "literal"]
@@ -74,6 +75,9 @@ class AnalysisParameters:
     glitch_range_factor: float = GLITCH_RANGE_FACTOR
     """A sample beyond the 0.1–99.9 % quantile range widened this many times is a glitch
     (:func:`dsp.robust.glitch_limits`)."""
+    spike_factor: float = SPIKE_FACTOR
+    """An isolated sample this many 0.1–99.9 % quantile ranges from its neighbours' median is a
+    glitch (:func:`dsp.robust.find_spikes`); 0: no spike test."""
     revolution_outlier_factor: float = REVOLUTION_OUTLIER_FACTOR
     """A revolution whose residual peak or energy exceeds this multiple of the median over the
     revolutions is left out of the average (:func:`dsp.robust.revolution_outliers`)."""

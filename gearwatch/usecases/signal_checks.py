@@ -19,8 +19,11 @@ from dsp.robust import (
     SampleDefects,
     dropout_run_length,
     find_sample_defects,
+    find_spikes,
     glitch_limits,
+    max_spikes,
     repair_spans,
+    spike_threshold,
 )
 from gearwatch.floor.campaign import RecordData
 from gearwatch.floor.errors import RecordFormatError, RecordRejected
@@ -77,7 +80,9 @@ def checked_signal(
     """Find defective samples; compute ``raw_rms`` and ``raw_kurtosis`` without them; block by block.
 
     Pass 1 finds the glitches (non-finite samples and samples far outside the record's robust
-    range, :func:`dsp.robust.glitch_limits`) and the channel's extremes without them; pass 2 finds
+    range, :func:`dsp.robust.glitch_limits`), counts the isolated spikes
+    (:func:`dsp.robust.find_spikes`; more than :func:`dsp.robust.max_spikes` are the record's own
+    impulses and stay) and takes the channel's extremes without either; pass 2 finds
     the clipped runs at those extremes and the dropouts, bridges every defective stretch
     (:func:`dsp.robust.repair_spans`) and accumulates the moments in one pass per block
     (:func:`dsp.metrics.extremes_and_moment_sums`) about the mean of the first good samples
@@ -92,14 +97,23 @@ def checked_signal(
     lo, hi = glitch_limits(samples, params.glitch_range_factor)
     limits = (max(lo, -MAX_ABS_SAMPLE), min(hi, MAX_ABS_SAMPLE))
     dropout_run = dropout_run_length(samples)
+    spike_limit = spike_threshold(samples, params.spike_factor)
     top, bottom = -np.inf, np.inf
+    spikes = 0
     for start in starts:
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
         # the limits are finite, so the comparisons leave NaN and inf out too
         inside = (block >= limits[0]) & (block <= limits[1])
+        lone = find_spikes(block, spike_limit)
+        lone = lone[inside[lone]]
+        spikes += lone.size
+        if lone.size:
+            inside[lone] = False
         good = block if inside.all() else block[inside]
         if good.size:
             top, bottom = max(top, float(good.max())), min(bottom, float(good.min()))
+    if spikes > max_spikes(samples.size):
+        spike_limit = float("inf")  # the record's own impulses, not glitches
     if not np.isfinite(top):
         raise RecordRejected(f"channel {name!r} holds no valid sample (all NaN, inf or glitches)")
     parts: list[SampleDefects] = []
@@ -108,7 +122,8 @@ def checked_signal(
     for start in starts:
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
         defects = find_sample_defects(
-            block, limits=limits, extremes=(bottom, top), dropout_min_run=dropout_run
+            block, limits=limits, extremes=(bottom, top), dropout_min_run=dropout_run,
+            spike_threshold=spike_limit,
         )
         spans = defects.spans()
         repaired = repair_spans(block, spans) if spans.size else block

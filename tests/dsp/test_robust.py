@@ -10,10 +10,13 @@ from dsp.robust import (
     dropout_run_length,
     equal_runs,
     find_sample_defects,
+    find_spikes,
     glitch_limits,
+    max_spikes,
     repair_spans,
     revolution_outliers,
     revolutions_overlapping,
+    spike_threshold,
 )
 
 
@@ -28,6 +31,56 @@ def test_gaussian_noise_has_no_defects() -> None:
     assert 25 < -lo < 45 and 25 < hi < 45
     defects = find_sample_defects(x, limits=(lo, hi))
     assert defects.counts() == {"glitch_samples": 0, "dropout_samples": 0, "clipped_samples": 0}
+
+
+def test_gaussian_noise_has_no_spike() -> None:
+    # 2 M samples of N(0, 1): the spike threshold is ~13 σ from the neighbours' median
+    x = noise(2_000_000, seed=1)
+    threshold = spike_threshold(x)
+    assert 11 < threshold < 15
+    assert find_spikes(x, threshold).size == 0
+
+
+@pytest.mark.parametrize(("height", "found"), [(20.0, True), (14.0, True), (8.0, False)])
+def test_a_lone_sample_in_noise_is_a_spike_from_13_sigma(height: float, found: bool) -> None:
+    x = noise(50_000, seed=2)
+    x[[7_000, 31_000]] += np.array([height, -height]) - x[[7_000, 31_000]]
+    spikes = find_spikes(x, spike_threshold(x))
+    assert spikes.tolist() == ([7_000, 31_000] if found else [])
+    defects = find_sample_defects(x, limits=glitch_limits(x), spike_threshold=spike_threshold(x))
+    assert defects.counts()["glitch_samples"] == (2 if found else 0)
+
+
+@pytest.mark.parametrize("cycles_per_sample", [0.05, 0.17, 0.25, 0.33, 0.4, 0.45])
+def test_a_ringing_impact_is_not_a_spike(cycles_per_sample: float) -> None:
+    # an impact through a resonance (damping 2 %), 40 σ high, starting in one sample from quiet:
+    # the samples after its peak ring at comparable heights
+    x = noise(20_000, seed=3)
+    n = np.arange(2_000)
+    x[10_000:12_000] += 40.0 * np.exp(-0.02 * 2 * np.pi * cycles_per_sample * n) * np.cos(
+        2 * np.pi * cycles_per_sample * n)
+    assert find_spikes(x, spike_threshold(x)).size == 0
+
+
+def test_a_band_limited_impulse_is_not_a_spike() -> None:
+    # the narrowest pulse an anti-alias filter passes (a sinc cut at 0.4 fs), 40 σ high: its
+    # neighbours span 0.42 of its height
+    x = noise(20_000, seed=5)
+    n = np.arange(-50, 51)
+    x[9_950:10_051] += 40.0 * np.sinc(0.8 * n) / np.sinc(0.0)
+    assert find_spikes(x, spike_threshold(x)).size == 0
+
+
+def test_many_lone_spikes_are_the_record_s_own() -> None:
+    # the allowance: a record with more lone spikes than max_spikes keeps them (see
+    # gearwatch.usecases.signal_checks); the detector itself finds every one
+    assert max_spikes(100_000) == 8 and max_spikes(1_000_000) == 50
+    x = noise(100_000, seed=4)
+    where = np.arange(500, 100_000, 2_000)  # 50: fewer than 0.1 %, below the quantile
+    x[where] = 25.0
+    assert find_spikes(x, spike_threshold(x)).tolist() == where.tolist()
+    assert find_spikes(x, float("inf")).size == 0
+    assert spike_threshold(x, 0.0) == float("inf")
 
 
 def test_quantised_sine_has_no_dropouts() -> None:

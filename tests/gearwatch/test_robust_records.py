@@ -61,11 +61,25 @@ def test_one_glitch_sample_does_not_make_a_well(
     )
 
 
-def test_a_glitch_inside_the_signal_range_is_caught_by_the_revolution_test(
+def test_a_lone_spike_inside_the_signal_range_is_a_glitch(
     spalled: SyntheticRecord, clean: RecordAnalysis
 ) -> None:
     acc = spalled.acceleration.copy()
     acc[30_123] += 8.0  # inside the sample bounds (~±19); before: a 1.3 Np well on tooth 12
+    analysis = analyze(spalled, acc)
+    assert_spall_kept(analysis, clean)
+    assert analysis.quality.glitch_samples == 1  # an isolated spike (dsp.robust.find_spikes)
+    assert analysis.quality.rejected_revolutions == 1
+    # the raw kurtosis is the clean record's: the spike is bridged before the moments
+    assert analysis.channels[0].metrics["raw_kurtosis"] == pytest.approx(
+        clean.channels[0].metrics["raw_kurtosis"], rel=1e-3)
+
+
+def test_a_short_burst_inside_the_signal_range_is_caught_by_the_revolution_test(
+    spalled: SyntheticRecord, clean: RecordAnalysis
+) -> None:
+    acc = spalled.acceleration.copy()
+    acc[30_123:30_126] += 8.0  # three samples: not a lone spike, and inside the sample bounds
     analysis = analyze(spalled, acc)
     assert_spall_kept(analysis, clean)
     assert analysis.quality.glitch_samples == 0
