@@ -31,7 +31,7 @@ Parts (never mixed; even seeds spalled, odd healthy): ``tune`` = seeds 0–59 an
 below which version each one measured; the ``held-out`` and ``held-out-2`` reports used their
 first 100 seeds, ``--limit 100``). ``--quick`` takes the first 12 campaigns of the part.
 
-Methods (rule settings in :data:`METHODS`): the new per-tooth detector ``tooth change``
+Methods (rule settings in :func:`_methods`): the new per-tooth detector ``tooth change``
 (:mod:`dsp.toothchange`, the ``change`` rule of :data:`detection.default_rules.DEFAULT_RULES`,
 computed from the days' averages exactly as :mod:`gearwatch.usecases.tooth_change` does from the
 database); the per-tooth ``score`` (MCI evidence in its own standard errors, with its rule);
@@ -39,9 +39,69 @@ today's MCI rule (``mci_depth``, 0.1 Np floor, warning 4, persistence 2 — with
 baseline it could never alarm in 7 days, so it gets 3); FM4, NA4, kurtosis of the average, raw
 kurtosis and per-tooth difference energy with the whole-record statistic (short-campaign
 baseline + CUSUM: the classic metrics get the same statistics as the per-tooth ones, so the
-comparison is of evidence, not of alarm logic). "Earlier than every classic metric" compares
-with FM4, NA4, kurtosis and raw kurtosis (difference energy alarms in nearly every healthy
-campaign: its first alarms are not detections).
+comparison is of evidence, not of alarm logic), each with its default rule's settings; NA4 as
+the database stores it (divided by the earlier records' mean residual variance, rebuilt from each
+day's ``baseline_stats``: ``NA4 (stored, disabled)``) beside the residual's kurtosis (NA4 of the
+record alone, the default rule since 2026-11-28); and ``every enabled default rule`` — what an
+operator of a new rig gets, per tooth and whole record together. "Earlier than every classic
+metric" compares with FM4, the residual's kurtosis, kurtosis and raw kurtosis (difference energy
+alarms in nearly every healthy campaign: its first alarms are not detections).
+
+Measured 2026-11-28 (third session), ``held-out-6`` (seeds 60000–60199, generated fresh), what
+an operator gets. Two changes: a lone ADC spike (one sample ~13 σ from its neighbours, which stay
+close together) is now a glitch, bridged before the raw metrics (:func:`dsp.robust.find_spikes`;
+chosen from the physics of band-limited signals, no seed looked at but two of ``held-out-4``);
+and the whole-record default rules (:data:`detection.default_rules.WHOLE_RECORD_RULE`'s note:
+chosen on this part's project campaigns, checked once on its independent ones). Before that,
+the benchmark had scored NA4 as ``analyze_record`` returns it without history, i.e. the
+residual's kurtosis, not as stored. Run with the previous code (``a769613``) and with this
+revision on the same records; "healthy w/ FA" of every enabled default rule is the figure that
+matters to an operator::
+
+    held-out-6                                project: previous → now       independent: previous → now
+    raw kurtosis, healthy w/ FA               71 → 1                        14 → 3
+    NA4 as stored (rule now disabled)         30                            24–25
+    kurtosis of the average                   11 → 1                        9 → 1
+    FM4                                       2 → 0                         5 → 2
+    residual kurtosis (the new NA4 rule)      – → 0                         – → 1
+    both per-tooth rules                      1 → 1                         0 → 0
+    every enabled default rule, healthy w/ FA 79 → 3                        47 → 6
+      … spalled, first alarm ≤ onset / ≤ +1   99 % / 99 % → 97 % / 98 %     38 % / 55 % → 20 % / 31 %
+
+    this revision, independent generator, held-out-6
+    method                    ≤onset    ≤+1    ≤+2  never median  exact   only   FA/1k healthy w/ FA
+    tooth change (new)           17%    29%    45%    49%    1.0    45%    35%    0.92      0/100
+    per-tooth score               3%     7%    15%    75%    2.0    20%    20%    0.13      0/100
+    both per-tooth rules         17%    29%    45%    48%    1.0    45%    35%    1.03      0/100
+    FM4                           8%    16%    43%    50%    2.0   nan%   nan%    1.91      2/100
+    residual kurtosis             6%    18%    39%    49%    2.0   nan%   nan%    0.96      1/100
+    NA4 (stored, disabled)       22%    36%    52%    36%    1.0   nan%   nan%   28.68     25/100
+    kurtosis                      0%     1%     7%    77%    3.0   nan%   nan%    0.96      1/100
+    raw kurtosis                  1%     2%     6%    81%    3.0   nan%   nan%    3.82      3/100
+    every enabled default rule   20%    31%    52%    40%    1.0   nan%   nan%    7.65      6/100
+    both per-tooth rules earlier than every classic metric: 24%; same day or earlier: 85%; later: 15%
+
+    this revision, project simulator, held-out-6
+    tooth change (new)           91%    96%    96%     4%    0.0    91%    17%    2.68      0/100
+    per-tooth score              67%    85%    90%     9%    0.0    77%    63%    0.88      1/100
+    both per-tooth rules         93%    98%    98%     2%    0.0    93%    15%    3.32      1/100
+    FM4                          89%    92%    95%     4%    0.0   nan%   nan%    0.96      0/100
+    residual kurtosis            91%    93%    95%     4%    0.0   nan%   nan%    0.96      0/100
+    NA4 (stored, disabled)       88%    90%    94%     6%    0.0   nan%   nan%   31.55     30/100
+    kurtosis                     63%    86%    87%    13%    0.0   nan%   nan%    0.96      1/100
+    raw kurtosis                 46%    71%    81%    18%    0.0   nan%   nan%    0.96      1/100
+    every enabled default rule   97%    98%    98%     2%    0.0   nan%   nan%    5.74      3/100
+    both per-tooth rules earlier than every classic metric: 5%; same day or earlier: 96%; later: 4%
+
+What it says. The per-tooth rules did not change (the same openings on every campaign); the
+operator's false alarms came from the whole-record rules — raw kurtosis lifted by single spikes
+the range test let through (a 20 σ sample in a 60 000-sample record adds 2.7 to it), the stored
+NA4 jumping by the gain⁴ at a gain step, the average's kurtosis moved by a day's operating point.
+With both changes, 3 and 6 healthy campaigns of 100 alarm on anything (target: 0 — not met), and
+an operator loses the early whole-record alarms that came, in spalled and healthy campaigns
+alike, from rules that alarmed in half of the healthy ones. The per-tooth targets are as before:
+met on the project simulator for earliness and the tooth (onset day 93 %, by the next 98 %, right
+tooth 93 % — the tooth short of 95 % on this part), not on the independent one (17 % / 29 %).
 
 Measured 2026-11-28, 2-core machine, after two choices made on ``tune`` + ``tune-2`` only (seeds
 0–159, offline on every day's stored pinion average): the change **weights each order by the
@@ -756,6 +816,7 @@ def analyse_campaign(generator: str, spec: CampaignSpec) -> dict[str, Any]:
             "teeth": {name: [getattr(t, name) for t in channel.teeth]
                       for name in ("mci_depth", "mci_depth_se", "score", "diff_energy")},
             "metrics": channel.metrics,
+            "baseline_stats": channel.baseline_stats,
             "worst_tooth": channel.worst_tooth,
         })
     # the change indicator: the stored averages of the accepted days in taken_at order, exactly
@@ -790,7 +851,7 @@ def _generate(args: tuple[str, int]) -> None:
 
 NEW_METHOD = "both per-tooth rules"
 """The per-tooth detector an operator gets: the default ``change`` and ``score`` rules together."""
-CLASSIC_METHODS = ("FM4", "NA4", "kurtosis", "raw kurtosis")
+CLASSIC_METHODS = ("FM4", "residual kurtosis", "kurtosis", "raw kurtosis")
 """Whole-record classics the new detector is compared with (diff energy, per tooth with the
 whole-record statistic, alarms in almost every healthy campaign: its first alarms are not detections)."""
 METHODS: dict[str, tuple[str, bool, dict[str, Any]]] = {}
@@ -800,17 +861,22 @@ METHODS: dict[str, tuple[str, bool, dict[str, Any]]] = {}
 def _methods() -> dict[str, tuple[str, bool, dict[str, Any]]]:
     from detection.default_rules import DEFAULT_RULES
 
-    classic = dict(DEFAULT_RULES["fm4"])
+    def classic(indicator: str) -> dict[str, Any]:
+        """The default rule's settings (the ``enabled`` flag is storage's, not the rule's)."""
+        return {k: v for k, v in DEFAULT_RULES[indicator].items() if k != "enabled"}
+
     return {
         "tooth change (new)": ("change", True, dict(DEFAULT_RULES["change"])),
         "per-tooth score": ("score", True, dict(DEFAULT_RULES["score"])),
         "both per-tooth rules": (BOTH_PER_TOOTH, True, {}),
         "today's MCI rule": ("mci_depth", True, {"spread_floor_abs": 0.1, "baseline_records": 3}),
-        "FM4": ("fm4", False, classic),
-        "NA4": ("na4", False, classic),
-        "kurtosis": ("kurtosis", False, classic),
-        "raw kurtosis": ("raw_kurtosis", False, classic),
-        "diff energy": ("diff_energy", True, classic),
+        "FM4": ("fm4", False, classic("fm4")),
+        "residual kurtosis": ("residual_kurtosis", False, classic("residual_kurtosis")),
+        "NA4 (stored, disabled)": (NA4_STORED, False, classic("na4")),
+        "kurtosis": ("kurtosis", False, classic("kurtosis")),
+        "raw kurtosis": ("raw_kurtosis", False, classic("raw_kurtosis")),
+        "diff energy": ("diff_energy", True, classic("raw_kurtosis")),
+        OPERATOR_VIEW: (OPERATOR_VIEW, False, {}),
     }
 
 
@@ -819,6 +885,34 @@ BOTH_PER_TOOTH = "change+score"
 and the ``score`` rules together. On a day both open alarms on, the tooth named is the
 ``change`` rule's (it names the right tooth more often on both generators)."""
 _NAMING_PRIORITY = 1e6
+OPERATOR_VIEW = "every enabled default rule"
+"""What an operator of a new rig gets: the openings of every rule of
+:data:`detection.default_rules.DEFAULT_RULES` that is created enabled, per tooth and whole record
+(the ``mci_depth`` rule with its stored settings: an 8-record baseline)."""
+
+
+NA4_STORED = "na4 (running baseline)"
+"""NA4 as the database stores it: the record's fourth moment of the residual over the squared mean
+residual variance of the campaign's earlier records (:mod:`gearwatch.usecases.running_baselines`),
+rebuilt here from each day's ``baseline_stats``. ``analyze_record`` without that history divides by
+the record's own variance (``NA4, own record``: the kurtosis of the residual)."""
+
+
+def _running_na4(result: dict[str, Any]) -> None:
+    """Add :data:`NA4_STORED` to each accepted day's metrics (days saved without
+    ``baseline_stats``: NaN, the method then never alarms)."""
+    from gearwatch.usecases.running_baselines import expected_baselines
+
+    days = [d for d in result["days"] if "rejected" not in d]
+    points = [(d["day"], d.get("baseline_stats") or {}) for d in days]
+    for day, (_, stats), baseline in zip(days, points, expected_baselines(points, "residual_variance"),
+                                         strict=True):
+        own = stats.get("residual_variance")
+        if own is None or baseline is None:
+            day["metrics"][NA4_STORED] = math.nan
+            continue
+        day["metrics"][NA4_STORED] = (
+            day["metrics"]["na4"] * (own / baseline) ** 2 if baseline > 0 else 0.0)
 
 
 def evaluate(result: dict[str, Any], indicator: str, per_tooth: bool, settings: dict[str, Any]) -> list[tuple[int, int, str, float]]:
@@ -837,6 +931,20 @@ def evaluate(result: dict[str, Any], indicator: str, per_tooth: bool, settings: 
                 merged[key] = opening
         return sorted(merged.values())
 
+    if indicator == OPERATOR_VIEW:
+        openings = evaluate(result, BOTH_PER_TOOTH, True, {})
+        for name, rule_settings in DEFAULT_RULES.items():
+            if name in ("change", "score") or rule_settings.get("enabled", True) is False:
+                continue
+            per_tooth_rule = name in ("mci_depth",)
+            openings += evaluate(result, name, per_tooth_rule, dict(rule_settings))
+        return sorted(openings)
+    if indicator == NA4_STORED:
+        _running_na4(result)
+    if indicator == "residual_kurtosis":  # results saved before the metric: NA4 without history
+        for day in result["days"]:
+            if "metrics" in day and indicator not in day["metrics"]:
+                day["metrics"][indicator] = day["metrics"]["na4"]
     rule = RuleSettings(indicator, **settings)
     teeth = result["spec"]["pinion_teeth"] if per_tooth else 1
     states = [TrackState() for _ in range(teeth)]

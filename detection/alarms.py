@@ -81,6 +81,7 @@ INDICATOR_DIRECTIONS: dict[str, Direction] = {
     "fm0": "higher_is_worse",
     "fm4": "higher_is_worse",
     "na4": "higher_is_worse",
+    "residual_kurtosis": "higher_is_worse",
     "nb4": "higher_is_worse",
     "m6a": "higher_is_worse",
     "m8a": "higher_is_worse",

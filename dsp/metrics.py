@@ -494,7 +494,9 @@ def gear_metrics(
     """All classic metrics of one record, keyed as :data:`gearwatch.floor.results.AVERAGE_METRIC_NAMES`.
 
     ``rms``, ``peak``, ``crest`` and ``kurtosis`` are those of the TSA ``average``; ``fm0`` and
-    ``nb4`` use the TSA and ``teeth``; ``na4`` the residual; ``fm4``, ``m6a``, ``m8a`` the
+    ``nb4`` use the TSA and ``teeth``; ``na4`` and ``residual_kurtosis`` (NA4 divided by the
+    record's own residual variance: gain-free, see :data:`detection.default_rules.DEFAULT_RULES`)
+    the residual; ``fm4``, ``m6a``, ``m8a`` the
     difference signal; ``er`` the difference and the regular signal. The baselines are passed
     through to :func:`na4` and :func:`nb4` (``None``: the record's own variance). All signals
     lie along the last axis; leading axes are batched.
@@ -507,7 +509,7 @@ def gear_metrics(
     >>> difference = 0.1 * np.cos(2 * np.pi * 3 * n / 256)
     >>> m = gear_metrics(regular + difference, difference, difference, regular, teeth=16)
     >>> sorted(m)
-    ['crest', 'er', 'fm0', 'fm4', 'kurtosis', 'm6a', 'm8a', 'na4', 'nb4', 'peak', 'rms']
+    ['crest', 'er', 'fm0', 'fm4', 'kurtosis', 'm6a', 'm8a', 'na4', 'nb4', 'peak', 'residual_kurtosis', 'rms']
     >>> round(m["er"], 6)
     0.1
     """
@@ -519,6 +521,7 @@ def gear_metrics(
         "fm0": fm0(average, teeth),
         "fm4": fm4(difference),
         "na4": na4(residual, na4_baseline_variance),
+        "residual_kurtosis": na4(residual),
         "nb4": nb4(average, teeth, nb4_baseline_variance),
         "m6a": m6a(difference),
         "m8a": m8a(difference),

@@ -31,8 +31,8 @@ ToothIndicatorName = Literal[
 ]
 AlarmIndicatorName = Literal[
     "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score", "change",
-    "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
-    "raw_rms", "raw_kurtosis",
+    "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "residual_kurtosis", "nb4", "m6a", "m8a",
+    "er", "raw_rms", "raw_kurtosis",
 ]  # fmt: skip
 CurveName = Literal["pinion_average", "gear_average", "difference", "mci_raw", "mci", "speed_rpm"]
 

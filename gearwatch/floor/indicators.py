@@ -47,6 +47,7 @@ _INFO: dict[str, tuple[str, str]] = {
     "fm0": ("FM0", ""),
     "fm4": ("FM4", ""),
     "na4": ("NA4", ""),
+    "residual_kurtosis": ("kurtosis of the residual (NA4 of the record alone)", ""),
     "nb4": ("NB4", ""),
     "m6a": ("M6A", ""),
     "m8a": ("M8A", ""),

@@ -25,7 +25,8 @@ from gearwatch.floor.defaults import (
 MciForm = Literal["robust", "literal"]
 
 AVERAGE_METRIC_NAMES = (
-    "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
+    "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "residual_kurtosis", "nb4", "m6a", "m8a",
+    "er",
 )
 """The classic gear metrics of the pinion synchronous average (:func:`dsp.metrics.gear_metrics`)."""
 RAW_METRIC_NAMES = ("raw_rms", "raw_kurtosis")

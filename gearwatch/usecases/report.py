@@ -48,8 +48,8 @@ if TYPE_CHECKING:
     from storage.models import Rig
 
 TEMPLATES = Path(__file__).resolve().parent / "templates"
-CLASSIC_METRICS = ("rms", "kurtosis", "crest", "fm0", "fm4", "na4", "nb4", "m6a", "m8a", "er",
-                   "raw_rms", "raw_kurtosis")  # fmt: skip
+CLASSIC_METRICS = ("rms", "kurtosis", "crest", "fm0", "fm4", "na4", "residual_kurtosis", "nb4", "m6a",
+                   "m8a", "er", "raw_rms", "raw_kurtosis")  # fmt: skip
 TABLE_ROWS_PER_PAGE = 28
 
 

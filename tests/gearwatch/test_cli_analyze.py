@@ -68,7 +68,10 @@ def test_analyze_json_localises_the_spall(campaign_dir: Path, record: str) -> No
     assert [t["tooth"] for t in report["teeth"]] == list(range(1, 21))
     assert {"mci_depth", "diff_energy", "diff_kurtosis"} <= set(report["teeth"][0])
     assert set(report["metrics"]) == {"rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4",
-                                      "nb4", "m6a", "m8a", "er", "raw_rms", "raw_kurtosis"}
+                                      "residual_kurtosis", "nb4", "m6a", "m8a", "er", "raw_rms",
+                                      "raw_kurtosis"}
+    # a single record: NA4's baseline is its own variance, so NA4 is the residual's kurtosis
+    assert report["metrics"]["na4"] == pytest.approx(report["metrics"]["residual_kurtosis"])
     assert {"tach_repairs", "speed_variation", "score", "rejected_revolutions",
             "glitch_samples", "dropout_samples", "clipped_samples"} <= set(report["quality"])
     assert 0.0 < report["quality"]["score"] <= 1.0

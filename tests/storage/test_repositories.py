@@ -314,9 +314,15 @@ def test_alarm_rule_crud_and_validation(db_session: Session) -> None:
     rules = AlarmRuleRepository(db_session)
     defaults = rules.ensure_defaults(campaign.rig_id)
     assert sorted(r.indicator for r in defaults) == [
-        "change", "fm4", "kurtosis", "mci_depth", "na4", "raw_kurtosis", "score",
+        "change", "fm4", "kurtosis", "mci_depth", "na4", "raw_kurtosis", "residual_kurtosis", "score",
     ]
     assert len(rules.ensure_defaults(campaign.rig_id)) == len(DEFAULT_RULES)  # idempotent
+    # the running-baseline NA4 is there for whoever wants it, but off: a gain step moves it
+    # (detection.default_rules); its record-alone form carries the default
+    enabled = {r.indicator: r.enabled for r in defaults}
+    assert enabled["na4"] is False and enabled["residual_kurtosis"] is True
+    assert {r.indicator for r in rules.list(campaign.rig_id, enabled_only=True)} == {
+        name for name, settings in DEFAULT_RULES.items() if settings.get("enabled", True)}
     score = next(r for r in defaults if r.indicator == "score")
     assert (score.min_baseline_records, score.cusum_reference, score.cusum_limit) == (3, 3.0, 3.0)
     rule = rules.create(campaign.rig_id, "diff_energy", baseline_records=5, persistence=2)
