@@ -22,8 +22,8 @@ complementary defences, both pure (arrays in, arrays out):
      filter passes (a sinc) has neighbours spanning 0.4 of its height — so a lone sample is
      not data. An ADC spike 20 σ high is inside the range test's limits,
      yet it raises the raw kurtosis of a 60 000-sample record by 2.7 (the project simulator's
-     healthy campaigns with such spikes alarmed on raw kurtosis in 67 of 100, benchmarks/
-     bench_detection.py). A record with more candidates than :func:`max_spikes` allows holds
+     healthy campaigns with such spikes alarmed on raw kurtosis in 67 and 71 of 100 on two
+     parts of benchmarks/bench_detection.py; 1 of 100 once spikes were glitches). A record with more candidates than :func:`max_spikes` allows holds
      them as its own character, and they are left alone;
    - *clipped*: a run of at least ``clip_min_run`` (3) equal samples at the channel's extreme
      value (a saturated sensor or ADC holds it; a healthy analogue signal touches it once);

@@ -98,7 +98,8 @@ def checked_signal(
     limits = (max(lo, -MAX_ABS_SAMPLE), min(hi, MAX_ABS_SAMPLE))
     dropout_run = dropout_run_length(samples)
     spike_limit = spike_threshold(samples, params.spike_factor)
-    top, bottom = -np.inf, np.inf
+    # the channel's extremes without its glitches: [0] with the lone spikes, [1] without them
+    top, bottom = [-np.inf, -np.inf], [np.inf, np.inf]
     spikes = 0
     for start in starts:
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
@@ -107,14 +108,15 @@ def checked_signal(
         lone = find_spikes(block, spike_limit)
         lone = lone[inside[lone]]
         spikes += lone.size
-        if lone.size:
-            inside[lone] = False
-        good = block if inside.all() else block[inside]
-        if good.size:
-            top, bottom = max(top, float(good.max())), min(bottom, float(good.min()))
-    if spikes > max_spikes(samples.size):
+        for kept, mask in enumerate((inside, _without(inside, lone))):
+            good = block if mask.all() else block[mask]
+            if good.size:
+                top[kept], bottom[kept] = max(top[kept], float(good.max())), min(bottom[kept], float(good.min()))
+    spikes_are_glitches = spikes <= max_spikes(samples.size)
+    if not spikes_are_glitches:
         spike_limit = float("inf")  # the record's own impulses, not glitches
-    if not np.isfinite(top):
+    top_value, bottom_value = top[spikes_are_glitches], bottom[spikes_are_glitches]
+    if not np.isfinite(top_value):
         raise RecordRejected(f"channel {name!r} holds no valid sample (all NaN, inf or glitches)")
     parts: list[SampleDefects] = []
     shift = None
@@ -122,7 +124,7 @@ def checked_signal(
     for start in starts:
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
         defects = find_sample_defects(
-            block, limits=limits, extremes=(bottom, top), dropout_min_run=dropout_run,
+            block, limits=limits, extremes=(bottom_value, top_value), dropout_min_run=dropout_run,
             spike_threshold=spike_limit,
         )
         spans = defects.spans()
@@ -147,6 +149,15 @@ def checked_signal(
         counts["clipped_samples"] / samples.size,
         defects,
     )
+
+
+def _without(mask: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """``mask`` with ``indices`` set False (a copy when there are any)."""
+    if indices.size == 0:
+        return mask
+    out = mask.copy()
+    out[indices] = False
+    return out
 
 
 def _raw_moments_metrics(shifted_means: np.ndarray) -> dict[str, float]:

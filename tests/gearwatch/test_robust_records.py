@@ -75,6 +75,18 @@ def test_a_lone_spike_inside_the_signal_range_is_a_glitch(
         clean.channels[0].metrics["raw_kurtosis"], rel=1e-3)
 
 
+@pytest.mark.parametrize(("spikes", "glitches"), [(3, 3), (20, 0)])
+def test_many_lone_spikes_are_the_record_s_own(
+    spalled: SyntheticRecord, spikes: int, glitches: int
+) -> None:
+    # a 3-s record may hold 8 lone spikes as glitches (dsp.robust.max_spikes); 20 are its own
+    acc = spalled.acceleration.copy()
+    where = np.linspace(5_000, 55_000, spikes).astype(int)
+    acc[where] += 8.0
+    analysis = analyze(spalled, acc)
+    assert analysis.quality.glitch_samples == glitches
+
+
 def test_a_short_burst_inside_the_signal_range_is_caught_by_the_revolution_test(
     spalled: SyntheticRecord, clean: RecordAnalysis
 ) -> None:
