@@ -338,7 +338,7 @@ def find_sample_defects(
     extremes: tuple[float, float] | None = None,
     clip_min_run: int = CLIP_MIN_RUN,
     dropout_min_run: int = DROPOUT_MIN_RUN,
-    spike_threshold: float = float("inf"),
+    spikes: ArrayLike = (),
 ) -> SampleDefects:
     """Glitches, clipped stretches and dropouts of a 1-D signal (see the module docstring).
 
@@ -355,9 +355,9 @@ def find_sample_defects(
         The channel's (min, max) *without* its glitches; default: those of ``signal``.
     clip_min_run, dropout_min_run : int
         Shortest clipped run at an extreme, shortest run of equal samples elsewhere.
-    spike_threshold : float
-        Isolated spikes (:func:`find_spikes`) farther than this from their neighbours' median
-        are glitches too (default ``inf``: none; :func:`spike_threshold` of the whole record).
+    spikes : array_like of int
+        Indices of isolated spikes (:func:`find_spikes` with the whole record's
+        :func:`spike_threshold`), glitches too; default none.
 
     Returns
     -------
@@ -376,7 +376,7 @@ def find_sample_defects(
     bad = ~((x >= lo) & (x <= hi))  # NaN too
     if not (np.isfinite(lo) and np.isfinite(hi)):  # then inf may lie within the limits
         bad |= ~np.isfinite(x)
-    bad[find_spikes(x, spike_threshold)] = True
+    bad[np.asarray(spikes, dtype=np.int64)] = True
     glitch = _true_spans(bad)
     if extremes is None:
         good = x[~bad]

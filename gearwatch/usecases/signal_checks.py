@@ -98,34 +98,35 @@ def checked_signal(
     limits = (max(lo, -MAX_ABS_SAMPLE), min(hi, MAX_ABS_SAMPLE))
     dropout_run = dropout_run_length(samples)
     spike_limit = spike_threshold(samples, params.spike_factor)
-    # the channel's extremes without its glitches: [0] with the lone spikes, [1] without them
-    top, bottom = [-np.inf, -np.inf], [np.inf, np.inf]
-    spikes = 0
+    top, bottom = -np.inf, np.inf  # the channel's extremes without its glitches and lone spikes
+    spike_top, spike_bottom = -np.inf, np.inf
+    block_spikes: list[np.ndarray] = []  # per block, found once and passed to pass 2
     for start in starts:
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
         # the limits are finite, so the comparisons leave NaN and inf out too
         inside = (block >= limits[0]) & (block <= limits[1])
         lone = find_spikes(block, spike_limit)
         lone = lone[inside[lone]]
-        spikes += lone.size
-        for kept, mask in enumerate((inside, _without(inside, lone))):
-            good = block if mask.all() else block[mask]
-            if good.size:
-                top[kept], bottom[kept] = max(top[kept], float(good.max())), min(bottom[kept], float(good.min()))
-    spikes_are_glitches = spikes <= max_spikes(samples.size)
-    if not spikes_are_glitches:
-        spike_limit = float("inf")  # the record's own impulses, not glitches
-    top_value, bottom_value = top[spikes_are_glitches], bottom[spikes_are_glitches]
-    if not np.isfinite(top_value):
+        block_spikes.append(lone)
+        if lone.size:
+            spike_top, spike_bottom = max(spike_top, float(block[lone].max())), min(spike_bottom, float(block[lone].min()))
+            inside[lone] = False
+        good = block if inside.all() else block[inside]
+        if good.size:
+            top, bottom = max(top, float(good.max())), min(bottom, float(good.min()))
+    if sum(lone.size for lone in block_spikes) > max_spikes(samples.size):
+        # the record's own impulses, not glitches: kept, and part of its extremes
+        block_spikes = [lone[:0] for lone in block_spikes]
+        top, bottom = max(top, spike_top), min(bottom, spike_bottom)
+    if not np.isfinite(top):
         raise RecordRejected(f"channel {name!r} holds no valid sample (all NaN, inf or glitches)")
     parts: list[SampleDefects] = []
     shift = None
     sums = np.zeros(4)
-    for start in starts:
+    for start, spikes in zip(starts, block_spikes, strict=True):
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
         defects = find_sample_defects(
-            block, limits=limits, extremes=(bottom_value, top_value), dropout_min_run=dropout_run,
-            spike_threshold=spike_limit,
+            block, limits=limits, extremes=(bottom, top), dropout_min_run=dropout_run, spikes=spikes,
         )
         spans = defects.spans()
         repaired = repair_spans(block, spans) if spans.size else block
@@ -149,15 +150,6 @@ def checked_signal(
         counts["clipped_samples"] / samples.size,
         defects,
     )
-
-
-def _without(mask: np.ndarray, indices: np.ndarray) -> np.ndarray:
-    """``mask`` with ``indices`` set False (a copy when there are any)."""
-    if indices.size == 0:
-        return mask
-    out = mask.copy()
-    out[indices] = False
-    return out
 
 
 def _raw_moments_metrics(shifted_means: np.ndarray) -> dict[str, float]:

@@ -47,7 +47,7 @@ def test_a_lone_sample_in_noise_is_a_spike_from_13_sigma(height: float, found: b
     x[[7_000, 31_000]] += np.array([height, -height]) - x[[7_000, 31_000]]
     spikes = find_spikes(x, spike_threshold(x))
     assert spikes.tolist() == ([7_000, 31_000] if found else [])
-    defects = find_sample_defects(x, limits=glitch_limits(x), spike_threshold=spike_threshold(x))
+    defects = find_sample_defects(x, limits=glitch_limits(x), spikes=spikes)
     assert defects.counts()["glitch_samples"] == (2 if found else 0)
 
 
