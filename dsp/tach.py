@@ -26,6 +26,15 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from dsp.tachgaps import (
+    LOCAL_PERIOD_WINDOW,
+    SMOOTH_STEP_LIMIT,
+    BridgedStretch,
+    bridge_problem,
+    bridge_unexplained,
+    burst_proof_period,
+    unexplained_intervals,
+)
 from gearwatch.floor.defaults import MAD_TO_SIGMA, MAX_SPEED_VARIATION
 
 __all__ = [
@@ -34,6 +43,7 @@ __all__ = [
     "TachAnalysis",
     "TachometerError",
     "analyze_tachometer",
+    "bridge_unexplained",
     "pulse_times_from_waveform",
     "repair_pulse_times",
     "shaft_ratios",
@@ -45,13 +55,6 @@ FloatArray = NDArray[np.float64]
 DEFAULT_MAX_SPEED_VARIATION = MAX_SPEED_VARIATION
 """Largest accepted (max − min)/mean of the per-revolution speed within a record
 (:data:`gearwatch.floor.defaults.MAX_SPEED_VARIATION`)."""
-
-LOCAL_PERIOD_WINDOW = 9
-"""Intervals in the running median that gives the local pulse period (robust to 2 bad intervals)."""
-
-SMOOTH_STEP_LIMIT = 0.25
-"""A pulse train whose period never changes by more than this from one pulse to the next has no
-lost or spurious pulse (those change it by 50-100 %): its irregularity is the speed itself."""
 
 MIN_FIT_SAMPLES = 3
 """An edge with at least this many samples inside the hysteresis band is timed by a straight-line
@@ -75,17 +78,21 @@ class PulseRepair:
 
     Attributes
     ----------
-    kind : {"missing", "extra"}
+    kind : {"missing", "extra", "bridged"}
         ``"missing"``: a pulse was inserted in an interval ≈ 2× the local period.
         ``"extra"``: a pulse splitting one period into two short intervals was removed.
+        ``"bridged"``: a stretch no single repair explains (a burst of interference, a gap) was
+        replaced by evenly spaced pulses (:func:`dsp.tachgaps.bridge_unexplained`); its revolutions are not
+        averaged (:attr:`TachAnalysis.bridged_spans_s`).
     index : int
         Position in the *input* sequence: for ``"extra"`` the index of the removed pulse, for
-        ``"missing"`` the index of the input pulse before which the new pulse was inserted.
+        ``"missing"`` the index of the input pulse before which the new pulse was inserted, for
+        ``"bridged"`` the index of the last trusted pulse before the stretch.
     time_s : float
-        Time of the removed or inserted pulse (s).
+        Time of the removed or inserted pulse, or of the stretch's start (s).
     """
 
-    kind: Literal["missing", "extra"]
+    kind: Literal["missing", "extra", "bridged"]
     index: int
     time_s: float
 
@@ -110,9 +117,14 @@ class TachAnalysis:
     mean_rpm, min_rpm, max_rpm : float
         Mean, minimum and maximum of ``rev_speed_rpm``.
     speed_variation : float
-        ``(max_rpm - min_rpm) / mean_rpm``.
+        ``(max_rpm - min_rpm) / mean_rpm``, like the three before over the revolutions outside
+        ``bridged_spans_s``.
     whole_revolutions : int
         Whole revolutions of the tach shaft between the first and the last revolution mark.
+    bridged_spans_s : tuple of (float, float)
+        Time spans (s) whose angle rests on bridged pulses (each stretch widened by one local
+        period on both sides, where the phase model still feels the bridge): the revolutions
+        that overlap one must not be averaged. Empty for a sound pulse train.
     """
 
     pulse_times_s: FloatArray
@@ -125,6 +137,7 @@ class TachAnalysis:
     max_rpm: float
     speed_variation: float
     whole_revolutions: int
+    bridged_spans_s: tuple[tuple[float, float], ...] = ()
 
 
 def shaft_ratios(
@@ -573,13 +586,18 @@ def analyze_tachometer(
     min_speed_rpm: float = 1.0,
     max_speed_rpm: float = 100_000.0,
     repair_tolerance: float = 0.3,
+    bridge: bool = True,
 ) -> TachAnalysis:
     """Repair a pulse train, measure the tach-shaft speed and accept or refuse the record.
 
-    Steps: :func:`repair_pulse_times`; refuse any interval still off the local period by more
-    than ``repair_tolerance`` (a gap or burst that one missing/extra pulse cannot explain — or,
-    when every period is within :data:`SMOOTH_STEP_LIMIT` of the previous one, a speed that
-    changes too fast for order tracking, which the reason then says); take
+    Steps: :func:`repair_pulse_times`; refuse a record whose intervals are still off the local
+    period by more than ``repair_tolerance`` while every period is within
+    :data:`SMOOTH_STEP_LIMIT` of the previous one (a speed that changes too fast for order
+    tracking, which the reason then says); bridge the stretches one missing or extra pulse
+    cannot explain (a burst of interference, a gap: :func:`dsp.tachgaps.bridge_unexplained`),
+    refusing the tach when they cover more than :data:`dsp.tachgaps.MAX_BRIDGED_FRACTION` of it
+    or, with several pulses per revolution, when the count of periods in one is not sure (with
+    ``bridge`` False: refusing any such stretch); take
     every ``pulses_per_rev``-th pulse from the first as the revolution marks; refuse if fewer
     than ``min_revolutions`` whole revolutions, if any per-revolution speed is outside
     ``[min_speed_rpm, max_speed_rpm]``, or if ``(max - min) / mean`` of the per-revolution speed
@@ -599,6 +617,9 @@ def analyze_tachometer(
         Accepted speed range of the tach shaft (every revolution must be inside).
     repair_tolerance : float
         Relative period tolerance for repairs and for the regularity check.
+    bridge : bool
+        Bridge unexplained stretches (True) or refuse the record (False: a pulse train that is
+        itself an estimate, such as the mesh-phase angle's, is not patched).
 
     Returns
     -------
@@ -638,27 +659,7 @@ def analyze_tachometer(
     if t.size < 3:
         raise TachometerError(f"too few tachometer pulses ({t.size}) to measure a speed")
 
-    repaired, repairs = repair_pulse_times(t, tolerance=repair_tolerance)
-    intervals = np.diff(repaired)
-    deviation = intervals / _local_period(intervals) - 1.0
-    irregular = np.flatnonzero(np.abs(deviation) > repair_tolerance)
-    if irregular.size:
-        i = int(irregular[0])
-        # Each interval within a few % of its neighbours, yet far from the running median: the
-        # speed itself moves too fast (a run-up, a stop), not a lost or spurious pulse.
-        steps = np.abs(np.diff(intervals) / intervals[:-1])
-        if steps.size and float(np.max(steps)) <= SMOOTH_STEP_LIMIT:
-            raise TachometerError(
-                f"speed changes too fast for order tracking: the pulse period changes by up to "
-                f"{float(np.max(steps)):.1%} per pulse and is {1 + deviation[i]:.2f}× its "
-                f"{LOCAL_PERIOD_WINDOW}-pulse running median at {repaired[i]:.6g} s (accepted: "
-                f"within {repair_tolerance:.0%}, i.e. about {repair_tolerance / 4:.0%} per pulse)"
-            )
-        raise TachometerError(
-            f"irregular tachometer: {irregular.size} pulse interval(s) not explained by one missing "
-            f"or extra pulse, first at {repaired[i]:.6g} s ({1 + deviation[i]:.2f}× the local period)"
-        )
-
+    repaired, repairs, stretches = _sound_pulse_train(t, pulses_per_rev, repair_tolerance, bridge)
     rev_times = repaired[::pulses_per_rev]
     whole = rev_times.size - 1
     if whole < min_revolutions:
@@ -667,9 +668,13 @@ def analyze_tachometer(
             f"{pulses_per_rev} per revolution); at least {min_revolutions} are required"
         )
     rev_speed = 60.0 / np.diff(rev_times)
-    mean_rpm = float(np.mean(rev_speed))
-    min_rpm = float(np.min(rev_speed))
-    max_rpm = float(np.max(rev_speed))
+    bridged_spans = tuple(
+        (s.start_s - s.local_period_s, s.stop_s + s.local_period_s) for s in stretches
+    )
+    measured = _outside_spans(rev_speed, rev_times, bridged_spans)
+    mean_rpm = float(np.mean(measured))
+    min_rpm = float(np.min(measured))
+    max_rpm = float(np.max(measured))
     if min_rpm < min_speed_rpm or max_rpm > max_speed_rpm:
         raise RecordOutOfTachLimits(
             f"tach-shaft speed {min_rpm:.6g}-{max_rpm:.6g} rpm is outside the accepted range "
@@ -692,4 +697,69 @@ def analyze_tachometer(
         max_rpm=max_rpm,
         speed_variation=float(variation),
         whole_revolutions=int(whole),
+        bridged_spans_s=bridged_spans,
     )
+
+
+def _sound_pulse_train(
+    t: FloatArray, pulses_per_rev: int, tolerance: float, bridge: bool
+) -> tuple[FloatArray, tuple[PulseRepair, ...], tuple[BridgedStretch, ...]]:
+    """:func:`analyze_tachometer`'s repairs: the repaired pulses, the repairs, the bridges — or
+    the refusal of a speed that changes too fast, or of a train still irregular."""
+    repaired, repairs = repair_pulse_times(t, tolerance=tolerance)
+    intervals = np.diff(repaired)
+    deviation = intervals / _local_period(intervals) - 1.0
+    irregular = np.flatnonzero(np.abs(deviation) > tolerance)
+    if irregular.size:
+        # Each interval within a few % of its neighbours, yet far from the running median: the
+        # speed itself moves too fast (a run-up, a stop), not a lost or spurious pulse.
+        steps = np.abs(np.diff(intervals) / intervals[:-1])
+        if steps.size and float(np.max(steps)) <= SMOOTH_STEP_LIMIT:
+            i = int(irregular[0])
+            raise TachometerError(
+                f"speed changes too fast for order tracking: the pulse period changes by up to "
+                f"{float(np.max(steps)):.1%} per pulse and is {1 + deviation[i]:.2f}× its "
+                f"{LOCAL_PERIOD_WINDOW}-pulse running median at {repaired[i]:.6g} s (accepted: "
+                f"within {tolerance:.0%}, i.e. about {tolerance / 4:.0%} per pulse)"
+            )
+    stretches: tuple[BridgedStretch, ...] = ()
+    if bridge:
+        # bursts and gaps first, on the pulses as found (single repairs guess wrong inside a
+        # burst); then the isolated missing and extra pulses, as before
+        bridged, stretches = bridge_unexplained(t, tolerance=tolerance)
+        if stretches:
+            repaired, repairs = repair_pulse_times(bridged, tolerance=tolerance)
+            repairs = tuple(sorted(
+                repairs + tuple(PulseRepair("bridged", s.index, s.start_s) for s in stretches),
+                key=lambda rep: rep.time_s,
+            ))
+        intervals = np.diff(repaired)
+        deviation = intervals / _local_period(intervals) - 1.0
+        unexplained = np.abs(deviation) > tolerance
+        period = burst_proof_period(intervals, 0.5 * (repaired[:-1] + repaired[1:]))
+        if period is not None:  # (None: nothing near a plausible period; the running median judges)
+            unexplained |= unexplained_intervals(intervals / period, intervals, tolerance)
+        irregular = np.flatnonzero(unexplained)
+    if irregular.size:
+        i = int(irregular[0])
+        raise TachometerError(
+            f"irregular tachometer: {irregular.size} pulse interval(s) not explained by one missing "
+            f"or extra pulse, first at {repaired[i]:.6g} s ({1 + deviation[i]:.2f}× the local period)"
+        )
+    problem = bridge_problem(stretches, repaired, pulses_per_rev)
+    if problem:
+        raise TachometerError(problem)
+    return repaired, repairs, stretches
+
+
+def _outside_spans(
+    rev_speed: FloatArray, rev_times: FloatArray, spans: tuple[tuple[float, float], ...]
+) -> FloatArray:
+    """The per-revolution speeds outside the bridged spans (all of them when every revolution is
+    inside one): the speed inside a bridge is a guess, not a measurement."""
+    if not spans:
+        return rev_speed
+    inside = np.zeros(rev_speed.size, dtype=bool)
+    for lo, hi in spans:
+        inside |= (rev_times[1:] > lo) & (rev_times[:-1] < hi)
+    return rev_speed[~inside] if not inside.all() else rev_speed

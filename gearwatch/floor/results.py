@@ -167,7 +167,7 @@ class ChannelQuality:
     sync_to_noise_db: float
     """Synchronous power of the pinion average over the non-synchronous power per revolution (dB)."""
     rejected_revolutions: int
-    """Pinion revolutions left out of the average (sum of the two next)."""
+    """Pinion revolutions left out of the average (the two next and ``rejected_tach_gap_revolutions``)."""
     rejected_defective_revolutions: int
     """... because they overlap a glitch, dropout or clipped stretch."""
     rejected_outlier_revolutions: int
@@ -178,6 +178,10 @@ class ChannelQuality:
     """Samples in runs of >= 8 exactly equal values (zeros or a held value), bridged."""
     clipped_samples: int
     """Samples in runs of >= 3 at the channel's extreme value, bridged."""
+    rejected_tach_gap_revolutions: int = 0
+    """Pinion revolutions left out because their angle rests on bridged tach pulses (a burst of
+    interference or a gap in the tach signal, :func:`dsp.tach.bridge_unexplained`); counted in
+    ``rejected_revolutions``."""
 
 
 @dataclass(frozen=True)

@@ -494,23 +494,26 @@ def _checked_averages(
             signal.samples, sample_rate_hz, tach.pulse_times_s, tach.pulses_per_rev, pinion_spr,
             gear_spr, pinion_per_tach_rev, hunting_tach_revs, block_samples,
             signal.defects, params.revolution_outlier_factor,
+            tach_gaps_s=np.asarray(tach.bridged_spans_s, dtype=np.float64).reshape(-1, 2),
         )
     except ValueError as error:  # e.g. pulse times outside the record: tach and signal disagree
         raise RecordRejected(f"channel {name!r}: cannot resample to shaft angle: {error}") from error
     revolutions = angle.pinion_revolutions
-    rejected = angle.rejected_defective + angle.rejected_outliers
+    rejected = angle.rejected_defective + angle.rejected_outliers + angle.rejected_tach_gaps
     counts = signal.defects.counts()
     if rejected > MAX_REJECTED_REVOLUTION_FRACTION * (revolutions + rejected):
         what = ", ".join(f"{n} {k.removesuffix('_samples')}" for k, n in counts.items() if n)
         cause = (
             "the sensor is clipped" if counts["clipped_samples"] * 2 > sum(counts.values())
             else f"defective samples ({what})" if angle.rejected_defective
+            else "the tachometer's bridged stretches" if angle.rejected_tach_gaps
             else "non-repeating content"
         )
+        gaps = f", {angle.rejected_tach_gaps} in bridged tach stretches" if angle.rejected_tach_gaps else ""
         raise RecordRejected(
             f"channel {name!r}: {rejected} of {revolutions + rejected} pinion revolutions rejected "
             f"({angle.rejected_defective} with defective samples, {angle.rejected_outliers} "
-            f"outliers): {cause}"
+            f"outliers{gaps}): {cause}"
         )
     if revolutions < params.min_revolutions:
         raise RecordRejected(
@@ -523,7 +526,7 @@ def _checked_averages(
 def _channel_quality(angle: AngleAverages, tach: TachAnalysis, signal: ScannedSignal) -> ChannelQuality:
     """The channel's data-quality score and what went into it (:func:`dsp.quality.quality_score`)."""
     revolutions = angle.pinion_revolutions
-    rejected = angle.rejected_defective + angle.rejected_outliers
+    rejected = angle.rejected_defective + angle.rejected_outliers + angle.rejected_tach_gaps
     snr_db = sync_to_noise_db(float(np.var(angle.pinion_average)), angle.residual_power, revolutions)
     score = quality_score(
         revolutions=revolutions,
@@ -539,6 +542,7 @@ def _channel_quality(angle: AngleAverages, tach: TachAnalysis, signal: ScannedSi
         rejected_revolutions=rejected,
         rejected_defective_revolutions=angle.rejected_defective,
         rejected_outlier_revolutions=angle.rejected_outliers,
+        rejected_tach_gap_revolutions=angle.rejected_tach_gaps,
         **signal.defects.counts(),
     )
 

@@ -55,6 +55,9 @@ class AngleAverages:
     """(JACKKNIFE_GROUPS, pinion_spr): sums of the accepted pinion revolutions r with
     r mod K = group (the jackknife SE of the tooth evidence, :mod:`dsp.toothscore`)."""
     pinion_group_counts: np.ndarray
+    rejected_tach_gaps: int = 0
+    """Pinion revolutions dropped because their angle rests on bridged tach pulses
+    (:attr:`dsp.tach.TachAnalysis.bridged_spans_s`)."""
 
 
 def _revolution_bounds_s(
@@ -100,6 +103,7 @@ def angle_averages(
     block_samples: int,
     defects: SampleDefects,
     outlier_factor: float,
+    tach_gaps_s: np.ndarray | None = None,
 ) -> AngleAverages:
     """Pinion and gear synchronous averages, the record resampled one block at a time.
 
@@ -116,7 +120,8 @@ def angle_averages(
     that overlap one (± the interpolator's reach) are dropped, and so are the outliers among the
     rest of the block (:func:`dsp.robust.revolution_outliers`, against the block's own per-angle
     median). A gear revolution is dropped when any of its samples lies in a dropped pinion
-    revolution.
+    revolution. So is a pinion revolution that overlaps one of ``tach_gaps_s`` (time spans
+    whose angle rests on bridged tach pulses; the signal there is sound and is not bridged).
     """
     whole_tach_revs = (pulse_times_s.size - 1) // pulses_per_rev
     seconds_per_tach_rev = (pulse_times_s[-1] - pulse_times_s[0]) / max(
@@ -127,8 +132,9 @@ def angle_averages(
     pinion_sum = np.zeros(pinion_spr)
     pinion_sumsq = np.zeros(pinion_spr)
     gear_sum = np.zeros(gear_spr)
-    pinion_count = gear_count = rejected_defective = rejected_outliers = 0
+    pinion_count = gear_count = rejected_defective = rejected_outliers = rejected_gaps = 0
     spans = defects.spans()
+    gaps_s = np.empty((0, 2)) if tach_gaps_s is None else np.asarray(tach_gaps_s, float).reshape(-1, 2)
     margin_s = 4.0 / sample_rate_hz  # the quintic spline's stencil reaches 3 samples
     # jackknife groups: accepted revolution r (counted over the record) goes to group r mod K
     group_sums = np.zeros((JACKKNIFE_GROUPS, pinion_spr))
@@ -163,9 +169,13 @@ def angle_averages(
         )[: revs.shape[0]]
         keep = None if last else round((end_rev - first_rev) * pinion_per_tach_rev)
         revs = revs[skip_pinion_revs:][:keep]
-        touched = revolutions_overlapping(
-            bounds[skip_pinion_revs:][:keep], block_spans / sample_rate_hz, margin_s
-        )
+        own_bounds = bounds[skip_pinion_revs:][:keep]
+        touched = revolutions_overlapping(own_bounds, block_spans / sample_rate_hz, margin_s)
+        if gaps_s.size:
+            in_gap = revolutions_overlapping(own_bounds, gaps_s - start / sample_rate_hz) & ~touched
+            rejected_gaps += int(in_gap.sum())
+            touched |= in_gap
+            rejected_defective -= int(in_gap.sum())  # counted as tach gaps, not defects
         outliers = np.zeros_like(touched)
         outliers[~touched] = revolution_outliers(revs[~touched], outlier_factor)
         accepted = ~(touched | outliers)
@@ -197,5 +207,6 @@ def angle_averages(
         max(residual_power, 0.0),
         group_sums,
         group_counts,
+        rejected_gaps,
     )
 

@@ -22,7 +22,6 @@ from dsp.robust import (
     find_spikes,
     glitch_limits,
     max_spikes,
-    repair_spans,
     spike_threshold,
 )
 from gearwatch.floor.campaign import RecordData
@@ -32,8 +31,14 @@ from gearwatch.floor.results import AnalysisParameters
 CLIPPING_MIN_RUN = CLIP_MIN_RUN
 """Consecutive samples at the channel's extreme value that count as a clipped stretch."""
 MAX_DEFECTIVE_FRACTION = 0.05
-"""A channel with more of its samples defective (glitches, dropouts, clipped stretches) is refused
-outright; fewer are bridged and the revolutions they touch dropped."""
+"""A channel with more of its samples glitched or clipped is refused outright (its acquisition is
+broken, or its gain is wrong); fewer are bridged and the revolutions they touch dropped."""
+MAX_DROPOUT_FRACTION = 0.5
+"""Dropouts (runs of one held value: a sensor disconnected for a while) may take up to this share of
+a channel. They are contiguous, so the record around them is sound: the revolutions they touch are
+dropped and the usual revolution checks decide (too few left, or more than half dropped, refuses
+the record with that reason). Before 2026-11-28 they counted towards the 5 % above, and a 3-s
+dropout in a 20-s record refused the whole record."""
 MAX_ABS_SAMPLE = 1e12
 """Largest sample magnitude a record may hold (any unit): a 32-bit ADC counts to 2.1e9, no
 sensor reads 1e12 m/s² or V. Beyond it fourth moments overflow float64 and averages overflow the
@@ -83,12 +88,15 @@ def checked_signal(
     range, :func:`dsp.robust.glitch_limits`), counts the isolated spikes
     (:func:`dsp.robust.find_spikes`; more than :func:`dsp.robust.max_spikes` are the record's own
     impulses and stay) and takes the channel's extremes without either; pass 2 finds
-    the clipped runs at those extremes and the dropouts, bridges every defective stretch
-    (:func:`dsp.robust.repair_spans`) and accumulates the moments in one pass per block
+    the clipped runs at those extremes and the dropouts, and accumulates the moments of the
+    samples outside every defective stretch in one pass per block
     (:func:`dsp.metrics.extremes_and_moment_sums`) about the mean of the first good samples
-    (numerically safe for a signal whose mean does not wander by many standard deviations). A run
-    split by a block boundary counts as two (at most a few samples per 1-million-sample block).
-    A channel with more than :data:`MAX_DEFECTIVE_FRACTION` of its samples defective is refused.
+    (numerically safe for a signal whose mean does not wander by many standard deviations); the
+    stretches themselves are bridged later, before resampling
+    (:func:`gearwatch.usecases.angle_averages.angle_averages`). A run split by a block boundary
+    counts as two (at most a few samples per 1-million-sample block). A channel
+    with more than :data:`MAX_DEFECTIVE_FRACTION` of its samples glitched or clipped, or more than
+    :data:`MAX_DROPOUT_FRACTION` in dropouts, is refused.
     """
     samples = record.channel(name)
     if samples.ndim != 1 or samples.size == 0:
@@ -123,33 +131,47 @@ def checked_signal(
     parts: list[SampleDefects] = []
     shift = None
     sums = np.zeros(4)
+    good_samples = 0
     for start, spikes in zip(starts, block_spikes, strict=True):
         block = np.asarray(samples[start : start + block_samples], dtype=np.float64)
         defects = find_sample_defects(
             block, limits=limits, extremes=(bottom, top), dropout_min_run=dropout_run, spikes=spikes,
         )
-        spans = defects.spans()
-        repaired = repair_spans(block, spans) if spans.size else block
-        if shift is None:  # moments about a value near the mean, so that the sums do not cancel
-            shift = float(np.mean(repaired[:1024]))
-        sums += extremes_and_moment_sums(repaired, shift)[2]
+        good = _outside(block, defects.spans())
+        if shift is None and good.size:  # moments about a value near the mean: sums do not cancel
+            shift = float(np.mean(good[:1024]))
+        sums += extremes_and_moment_sums(good, shift or 0.0)[2]
+        good_samples += good.size
         parts.append(defects.shifted(start))
     defects = SampleDefects.concatenate(parts)
     counts = defects.counts()
     defective = sum(counts.values())
-    if defective > MAX_DEFECTIVE_FRACTION * samples.size:
+    scattered = counts["glitch_samples"] + counts["clipped_samples"]
+    if (scattered > MAX_DEFECTIVE_FRACTION * samples.size
+            or counts["dropout_samples"] > MAX_DROPOUT_FRACTION * samples.size):
         what = ", ".join(f"{n} {k.removesuffix('_samples')}" for k, n in counts.items() if n)
         raise RecordRejected(
             f"channel {name!r} has {defective / samples.size:.2%} defective samples ({what}): "
             + ("the sensor is clipped" if counts["clipped_samples"] * 2 > defective
+               else "the sensor is mostly disconnected" if counts["dropout_samples"] * 2 > defective
                else "the data are corrupt")
         )
     return ScannedSignal(
         samples,
-        _raw_moments_metrics(sums / samples.size),
+        _raw_moments_metrics(sums / max(good_samples, 1)),
         counts["clipped_samples"] / samples.size,
         defects,
     )
+
+
+def _outside(block: np.ndarray, spans: np.ndarray) -> np.ndarray:
+    """The samples of ``block`` outside every ``[start, stop)`` span (the block itself when none)."""
+    if not spans.size:
+        return block
+    marks = np.zeros(block.size + 1, dtype=np.int64)
+    np.add.at(marks, spans[:, 0], 1)
+    np.add.at(marks, spans[:, 1], -1)
+    return block[np.cumsum(marks[:-1]) == 0]
 
 
 def _raw_moments_metrics(shifted_means: np.ndarray) -> dict[str, float]:

@@ -337,6 +337,7 @@ def mesh_phase_angle(
             min_revolutions=params.min_revolutions,
             min_speed_rpm=params.min_speed_rpm,
             max_speed_rpm=params.max_speed_rpm,
+            bridge=False,  # synthetic pulses are an estimate: irregular ones are not patched
         )
     except TachometerError as error:
         return f"synthetic pulses from {name}, harmonic {estimate.harmonic}: {error}"

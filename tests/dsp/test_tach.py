@@ -16,6 +16,7 @@ from dsp.tach import (
     shaft_ratios,
     waveform_levels,
 )
+from dsp.tachgaps import MAX_BRIDGED_FRACTION, bridge_unexplained
 
 FS = 20_000.0
 
@@ -247,7 +248,8 @@ def test_speed_range_refused() -> None:
         (np.array([]), "no tachometer pulses"),
         (np.array([0.1, 0.2]), "too few tachometer pulses"),
         (np.array([0.1, 0.3, 0.2] + [0.4 + 0.1 * k for k in range(30)]), "not strictly increasing"),
-        (np.delete(np.arange(60) * 0.06, [20, 21, 22]), "irregular tachometer"),
+        # a gap of 21 periods in 59: more than a quarter of the record cannot be bridged
+        (np.delete(np.arange(60) * 0.06, range(10, 30)), "irregular tachometer.*cover 36%"),
     ],
 )
 def test_refusals_have_one_line_reasons(pulses: np.ndarray, reason: str) -> None:
@@ -305,3 +307,122 @@ def test_magnetic_pickup_sine_edges() -> None:
     assert found.size == 50
     assert np.sqrt(np.mean(error_samples**2)) < 2.0
     assert abs(np.mean(error_samples)) < 1.0
+
+
+# ------------------------------------------------------------- stretches no single repair explains
+
+
+def _steady(n: int = 80, period: float = 0.06) -> np.ndarray:
+    return np.arange(n) * period
+
+
+def test_a_burst_of_spurious_pulses_is_bridged_and_its_revolutions_named() -> None:
+    # interference on the tach cable: 12 spurious pulses within two periods at 1.5 s
+    t = _steady()
+    rng = np.random.default_rng(4)
+    burst = np.sort(rng.uniform(1.5, 1.62, 12))
+    tach = analyze_tachometer(np.sort(np.concatenate([t, burst])), 1)
+    np.testing.assert_allclose(tach.pulse_times_s, t, atol=1e-12)
+    assert [r.kind for r in tach.repairs] == ["bridged"]  # the single repairs inside superseded
+    (lo, hi), = tach.bridged_spans_s
+    assert lo <= 1.5 - 0.06 + 1e-9 and hi >= 1.62 + 0.06 - 1e-9  # one period of margin each side
+    assert hi - lo < 6 * 0.06
+    assert tach.speed_variation == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_gap_of_several_periods_is_bridged_with_the_right_count() -> None:
+    t = _steady()
+    tach = analyze_tachometer(np.delete(t, range(30, 35)), 1)  # 6 periods without a pulse
+    np.testing.assert_allclose(tach.pulse_times_s, t, atol=1e-12)
+    assert tach.whole_revolutions == t.size - 1
+    assert [r.kind for r in tach.repairs] == ["bridged"]
+
+
+def test_stretches_grouped_and_period_taken_around_them() -> None:
+    # the speed rises 20 % over the record; two separate stretches, each bridged at its own period
+    period = 0.06 / np.linspace(1.0, 1.2, 100)
+    t = np.concatenate([[0.0], np.cumsum(period)])
+    noisy = np.sort(np.concatenate([np.delete(t, [70, 71, 72, 73]), t[20] + [0.011, 0.013, 0.03]]))
+    pulses, stretches = bridge_unexplained(noisy)
+    assert len(stretches) == 2
+    assert [s.intervals for s in stretches] == [1, 5]
+    np.testing.assert_allclose(pulses[:70], t[:70], atol=1e-12)
+    np.testing.assert_allclose(pulses, t, atol=0.002)  # inside the gap: even spacing, a guess
+
+
+def test_bridging_refused_when_it_would_cover_too_much() -> None:
+    t = _steady(100)
+    covered = np.delete(t, range(20, 20 + int(MAX_BRIDGED_FRACTION * 100) + 2))
+    with pytest.raises(TachometerError, match="cover"):
+        analyze_tachometer(covered, 1)
+    assert analyze_tachometer(np.delete(t, range(20, 30)), 1).whole_revolutions == 99
+
+
+def test_several_pulses_per_revolution_need_a_whole_number_of_periods() -> None:
+    t = _steady(400, 0.005)  # 20 pulses per revolution
+    stretched = t.copy()
+    stretched[205:] += 0.002  # a gap of 5.4 periods: bridging would shift every mark after it
+    gap = np.delete(stretched, range(201, 205))
+    with pytest.raises(TachometerError, match="not a whole number"):
+        analyze_tachometer(gap, 20, min_revolutions=5)
+    exact = analyze_tachometer(np.delete(t, range(201, 205)), 20, min_revolutions=5)  # 5 periods
+    np.testing.assert_allclose(exact.pulse_times_s, t, atol=1e-12)
+    # with one pulse per revolution the same stretch is bridged: every mark is the reference
+    assert analyze_tachometer(gap[::20], 1, min_revolutions=5).whole_revolutions > 0
+
+
+def test_an_estimated_pulse_train_is_not_bridged() -> None:
+    with pytest.raises(TachometerError, match="irregular tachometer"):
+        analyze_tachometer(np.delete(_steady(), range(30, 35)), 1, bridge=False)
+
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_a_faulty_tach_is_bridged_right_or_refused_never_miscounted(seed: int) -> None:
+    """Random faults (interference, the signal held at 0 V, five spikes; 5–150 ms) on random
+    trains (300–3000 rpm, 1–60 pulses per revolution): what is kept outside the bridged spans is
+    the true pulses, and with several pulses per revolution never a miscount — or the tach is
+    refused. (``benchmarks/bench_tach_faults.py`` counts the same on 300 cases.)"""
+    rng = np.random.default_rng([seed, 77])
+    ppr = int(rng.choice([1, 2, 4, 60]))
+    rec = synthetic_gear_record(
+        duration_s=4.0, noise_rms=0.0, seed=seed, pulses_per_rev=ppr,
+        pinion_rpm=float(rng.uniform(300, 3000)), speed_fluctuation=float(rng.uniform(0, 0.05)),
+    )
+    w = rec.tach_waveform.copy()
+    start, length = int(rng.uniform(0.3, 3.5) * FS), int(rng.uniform(0.005, 0.15) * FS)
+    if seed % 3 == 0:
+        w[start : start + length] += rng.normal(0, rng.uniform(1, 5), length)
+    elif seed % 3 == 1:
+        w[start : start + length] = 0.0
+    else:
+        for at in rng.integers(start, start + length, 5):
+            w[at : at + 3] = 5.0
+    truth = pulse_times_from_waveform(rec.tach_waveform, FS)
+    try:
+        tach = analyze_tachometer(pulse_times_from_waveform(w, FS), ppr, min_revolutions=5)
+    except TachometerError as error:
+        assert "irregular tachometer" in str(error)
+        return
+    kept = tach.pulse_times_s
+    for lo, hi in tach.bridged_spans_s:
+        kept = kept[(kept <= lo) | (kept >= hi)]
+    error = np.min(np.abs(kept[:, None] - truth[None, :]), axis=1)
+    assert error.max() <= 0.2 * np.median(np.diff(truth))  # a dropout's end may move an edge a little
+    assert abs(tach.pulse_times_s.size - truth.size) <= (1 if ppr == 1 else 0)
+
+
+def test_a_long_burst_on_a_fine_encoder_is_refused_not_counted_by_luck() -> None:
+    """A 100-period burst on a 60-pulse encoder whose edges jitter by 2 % of a period: the local
+    period is known to about 0.5 %, the speed may change by 1 %, so the count of periods in the
+    burst is uncertain by about a period — whatever its fractional part, the bridge is refused
+    (a miscount would shift every revolution mark after it). With one pulse per revolution the
+    same train is bridged."""
+    rng = np.random.default_rng(3)
+    period = 1e-3
+    t = np.cumsum(period * (1 + 0.02 * rng.standard_normal(3000)))
+    burst = (t > 1.0) & (t < 1.1)
+    noisy = np.sort(np.concatenate([t[~burst], rng.uniform(1.0, 1.1, 400)]))
+    with pytest.raises(TachometerError, match="miscount would shift"):
+        analyze_tachometer(noisy, 60, min_revolutions=5)
+    assert analyze_tachometer(noisy, 1).bridged_spans_s

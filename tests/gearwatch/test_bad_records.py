@@ -123,6 +123,15 @@ def tach_dropout(path: Path) -> None:
     wav(path, acc, tach)
 
 
+def tach_interference(path: Path) -> None:
+    acc, tach = good_signals(seed=5)
+    pulses = np.flatnonzero(np.diff((tach > 2.5).astype(int)) == 1)
+    for a, b in zip(pulses[:-1:2], pulses[1::2], strict=False):  # two spikes in every other period
+        for at in (a + (b - a) // 2, a + 3 * (b - a) // 4):
+            tach[at : at + 4] = 5.0
+    wav(path, acc, tach)
+
+
 def too_few_revolutions(path: Path) -> None:
     acc, tach = good_signals(seconds=0.9)
     wav(path, acc, tach)
@@ -149,7 +158,9 @@ CASES: dict[str, tuple[Callable[[Path], None], str, str]] = {
     "wrong-rate.wav": (wrong_rate, "rejected", "25600 Hz differs from the manifest"),
     # a dead or broken tach no longer loses the record: angle from the mesh phase (issue 11)
     "no-pulses.wav": (no_pulses, "accepted", "no tachometer pulses"),
-    "tach-dropout.wav": (tach_dropout, "accepted", "irregular tachometer"),
+    # four pulses lost in a row: bridged, the revolutions it touches left out (not a tach failure)
+    "tach-dropout.wav": (tach_dropout, "accepted", ""),
+    "tach-interference.wav": (tach_interference, "accepted", "irregular tachometer"),
     "short.wav": (too_few_revolutions, "rejected", "revolutions"),
     "one-missing-pulse.wav": (one_missing_pulse, "accepted", ""),
     "good.wav": (good, "accepted", ""),
@@ -201,6 +212,11 @@ def test_every_bad_record_is_stored_rejected_with_its_reason_and_the_replay_goes
             assert words in record.quality["tach_failure"], (name, record.quality)
     repaired = stored["one-missing-pulse.wav"]
     assert [r["kind"] for r in repaired.quality["tach_repairs"]] == ["missing"]
+    bridged = stored["tach-dropout.wav"]
+    assert [r["kind"] for r in bridged.quality["tach_repairs"]] == ["bridged"]
+    assert bridged.quality["angle_source"] == "tachometer" and not bridged.quality["tach_failure"]
+    (channel,) = RecordRepository(db_session).results(bridged.id)[-1].channels
+    assert 5 <= channel.quality["rejected_tach_gap_revolutions"] <= 9  # 5 periods + 1 each side
 
 
 def test_speed_out_of_range_is_rejected(db_session: Session, bad_campaign: Path,

@@ -3,10 +3,13 @@ and the data-quality score (known-answer synthetic records, dsp.synthetic)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from dsp.synthetic import SyntheticRecord, synthetic_gear_record
+from dsp.tach import analyze_tachometer, pulse_times_from_waveform
 from gearwatch.floor.errors import RecordRejected
 from gearwatch.floor.results import RecordAnalysis
 from gearwatch.usecases.analyze import analyze_record
@@ -110,6 +113,76 @@ def test_a_short_dropout(
     assert analysis.quality.dropout_samples == length
     revolution_samples = spalled.sample_rate_hz * 60 / 1000
     assert analysis.quality.rejected_revolutions <= 2 + length / revolution_samples
+
+
+def test_a_long_dropout_loses_its_revolutions_not_the_record() -> None:
+    """A sensor disconnected for a quarter of the record (a held zero): the revolutions around it
+    are averaged and the raw metrics are those of the samples outside it. Before, more than 5 %
+    of defective samples refused the whole record."""
+    synthetic = synthetic_gear_record(
+        duration_s=6.0, spall_tooth=SPALL_TOOTH, spall_depth=0.1, tooth1_pitch_angle_deg=337.4,
+        seed=5,
+    )
+    whole = analyze(synthetic, synthetic.acceleration)
+    acc = synthetic.acceleration.copy()
+    acc[40_000:70_000] = 0.0  # 1.5 s of 6 s: 25 of 100 revolutions
+    analysis = analyze(synthetic, acc)
+    channel = analysis.channels[0]
+    assert channel.worst_tooth == SPALL_TOOTH
+    assert analysis.quality.dropout_samples == 30_000
+    assert channel.quality is not None
+    assert 25 <= channel.quality.rejected_defective_revolutions <= 28
+    for name in ("raw_rms", "raw_kurtosis"):
+        assert channel.metrics[name] == pytest.approx(whole.channels[0].metrics[name], rel=0.02)
+
+
+def test_dropouts_all_over_the_record_refuse_it_by_the_revolutions_they_leave(
+    spalled: SyntheticRecord,
+) -> None:
+    acc = spalled.acceleration.copy()
+    for start in range(500, acc.size - 100, 1200):  # a 100-sample dropout in every revolution
+        acc[start : start + 100] = 0.0
+    with pytest.raises(RecordRejected, match="pinion revolutions rejected"):
+        analyze(spalled, acc)
+    acc = spalled.acceleration.copy()
+    acc[: acc.size * 6 // 10] = 0.0
+    with pytest.raises(RecordRejected, match="mostly disconnected"):
+        analyze(spalled, acc)
+
+
+@pytest.mark.parametrize("fault", ["interference", "gap"])
+def test_a_tach_burst_or_gap_costs_its_revolutions_not_the_tach(
+    spalled: SyntheticRecord, fault: str
+) -> None:
+    """50 ms of interference on the tach cable (dozens of spurious edges), or 0.2 s without
+    pulses: the stretch is bridged and the revolutions it touches are left out — the result is
+    the one of the same record with those revolutions lost to an accelerometer dropout. Before,
+    either fault made the whole tach unusable and the angle fell back to the mesh phase."""
+    tach = spalled.tach_waveform.copy()
+    if fault == "interference":
+        tach[30_000:31_000] += np.random.default_rng(0).normal(0.0, 3.0, 1000)
+    else:
+        tach[30_000:34_000] = 0.0
+    record = dataclasses.replace(record_of(spalled), channels={"acc": spalled.acceleration, "tach": tach})
+    analysis = analyze_record(record, campaign_for(spalled), input_sha256="0" * 64)
+    assert analysis.quality.angle_source == "tachometer"
+    assert [r.kind for r in analysis.quality.tach_repairs] == ["bridged"]
+    quality = analysis.channels[0].quality
+    assert quality is not None and 2 <= quality.rejected_tach_gap_revolutions <= 9
+
+    fs = spalled.sample_rate_hz
+    (lo, hi), = analyze_tachometer(pulse_times_from_waveform(tach, fs), 1).bridged_spans_s
+    acc = spalled.acceleration.copy()
+    acc[int(lo * fs) : int(hi * fs) + 1] = 0.0  # the same revolutions lost the other way
+    dropped = analyze(spalled, acc)
+    # (the lost stretch's own revolutions may count one more or less: they are guesses, dropped)
+    assert abs(analysis.channels[0].revolutions - dropped.channels[0].revolutions) <= 1
+    assert analysis.channels[0].worst_tooth == dropped.channels[0].worst_tooth == SPALL_TOOTH
+    # the revolution next to each end may be counted in one and not the other (its bounds come
+    # from bridged pulses here, from true ones there): close, not equal
+    d, d_dropped = depths(analysis), depths(dropped)
+    assert d[SPALL_TOOTH - 1] == pytest.approx(d_dropped[SPALL_TOOTH - 1], abs=0.05)
+    assert np.delete(d, SPALL_TOOTH - 1).max() < 0.1
 
 
 def test_a_clipped_burst_is_handled_not_refused(
