@@ -50,6 +50,7 @@ from gearwatch.floor.campaign import (
     RecordEntry,
     RigConfig,
     Shaft,
+    TachEdge,
     TachKind,
     TachometerConfig,
 )
@@ -61,7 +62,7 @@ _TOP_LEVEL_KEYS = ("campaign", "rig", "acquisition", "tachometer", "channels", "
 _CAMPAIGN_KEYS = ("id", "description")
 _RIG_KEYS = ("id", "pinion_teeth", "gear_teeth", "tooth1_pitch_angle_deg", "nominal_pinion_rpm")
 _ACQUISITION_KEYS = ("sample_rate_hz",)
-_TACHOMETER_KEYS = ("channel", "kind", "shaft", "pulses_per_rev")
+_TACHOMETER_KEYS = ("channel", "kind", "shaft", "pulses_per_rev", "edge")
 _CHANNEL_KEYS = ("name", "kind", "unit")
 _RECORD_KEYS = ("file", "taken_at", "label")
 
@@ -192,6 +193,7 @@ def dump_manifest(campaign: Campaign) -> str:
             "kind": tach.kind,
             "shaft": tach.shaft,
             "pulses_per_rev": tach.pulses_per_rev,
+            **({"edge": tach.edge} if tach.edge != "rising" else {}),  # the default unwritten
         }
     document["channels"] = [
         {"name": c.name, "kind": c.kind, "unit": c.unit} for c in campaign.channels
@@ -304,11 +306,13 @@ def _parse_tachometer(
     kind = _choice(ctx, "[tachometer]", table, "kind", get_args(TachKind)) or "pulses"
     shaft = _choice(ctx, "[tachometer]", table, "shaft", get_args(Shaft)) or "pinion"
     pulses_per_rev = _positive_int(ctx, "[tachometer]", table, "pulses_per_rev") or 1
+    edge = _choice(ctx, "[tachometer]", table, "edge", get_args(TachEdge)) or "rising"
     return TachometerConfig(
         channel=channel,
         kind=cast(TachKind, kind),
         shaft=cast(Shaft, shaft),
         pulses_per_rev=pulses_per_rev,
+        edge=cast(TachEdge, edge),
     )
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 TachKind = Literal["pulses", "pulse_times"]
 Shaft = Literal["pinion", "gear"]
+TachEdge = Literal["rising", "falling"]
 ChannelKind = Literal["accelerometer", "tachometer"]
 
 
@@ -25,7 +26,8 @@ class RigConfig:
     """Without tooth counts the per-tooth results are omitted and the rest kept."""
     gear_teeth: int | None = None
     tooth1_pitch_angle_deg: float = 0.0
-    """Pinion angle after the tach reference edge at which pinion tooth 1 passes the pitch point."""
+    """Pinion angle after the tach reference edge (:attr:`TachometerConfig.edge`) at which pinion
+    tooth 1 passes the pitch point."""
     nominal_pinion_rpm: float | None = None
     """Optional speed hint (±20 %) for the tach-less shaft angle (:mod:`gearwatch.usecases.tachless`)."""
 
@@ -36,6 +38,11 @@ class TachometerConfig:
     kind: TachKind = "pulses"
     shaft: Shaft = "pinion"
     pulses_per_rev: int = 1
+    edge: TachEdge = "rising"
+    """The edge of a ``pulses`` waveform that marks a revolution — and that
+    ``tooth1_pitch_angle_deg`` is measured from: ``rising`` (a reflective tape or a key under an
+    optical or proximity sensor), ``falling`` (a notch under a proximity probe, or inverted
+    logic, gives a pulse that goes low first)."""
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -255,7 +256,7 @@ def _provenance(
             "pinion_teeth": rig.pinion_teeth,
             "gear_teeth": rig.gear_teeth,
             "tooth1_pitch_angle_deg": rig.tooth1_pitch_angle_deg,
-            "tachometer": dataclasses.asdict(campaign.tachometer) if campaign.tachometer else None,
+            "tachometer": _tach_parameters(campaign),
         },
     )
 
@@ -279,6 +280,17 @@ def _with_channel_quality(quality: Quality, channels: list[ChannelAnalysis]) -> 
         clipped_samples=sum(q.clipped_samples for q in qualities),
     )
 
+
+
+def _tach_parameters(campaign: Campaign) -> dict[str, Any] | None:
+    """The tachometer's settings in a result's provenance; the default ``edge`` ("rising") left
+    out, so results stored before the setting existed keep their parameters."""
+    if campaign.tachometer is None:
+        return None
+    settings = dataclasses.asdict(campaign.tachometer)
+    if settings["edge"] == "rising":
+        del settings["edge"]
+    return settings
 
 def _analyzed_channels(
     scans: Mapping[str, ScannedSignal],

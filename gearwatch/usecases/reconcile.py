@@ -430,7 +430,7 @@ def measured_from_record(
     fs = float(record.sample_rate_hz)
     raw = np.asarray(record.channel(tach.channel), dtype=np.float64)
     try:
-        pulses = pulse_times_from_waveform(raw, fs) if tach.kind == "pulses" else raw
+        pulses = pulse_times_from_waveform(raw, fs, edge=tach.edge) if tach.kind == "pulses" else raw
     except (TachometerError, ValueError) as error:
         raise InputError(f"{source}: tachometer: {error}") from None
     signal = np.asarray(record.channel(name), dtype=np.float64)

@@ -131,7 +131,7 @@ def _analyze_tach(
         if config.kind == "pulses" and raw.size > block_samples:
             # NaN/inf are refused block by block inside
             pulse_times_s = pulse_times_from_waveform_blocks(
-                raw, sample_rate_hz, block_samples=block_samples
+                raw, sample_rate_hz, block_samples=block_samples, edge=config.edge
             )
         else:
             raw = np.asarray(raw, dtype=np.float64)
@@ -140,7 +140,8 @@ def _analyze_tach(
                     f"tachometer channel {config.channel!r} contains NaN or inf samples"
                 )
             pulse_times_s = (
-                pulse_times_from_waveform(raw, sample_rate_hz) if config.kind == "pulses" else raw
+                pulse_times_from_waveform(raw, sample_rate_hz, edge=config.edge)
+                if config.kind == "pulses" else raw
             )
         return analyze_tachometer(
             pulse_times_s,

@@ -185,6 +185,25 @@ def test_a_tach_burst_or_gap_costs_its_revolutions_not_the_tach(
     assert np.delete(d, SPALL_TOOTH - 1).max() < 0.1
 
 
+def test_a_tach_whose_pulse_goes_low_is_read_on_its_falling_edge(
+    spalled: SyntheticRecord, clean: RecordAnalysis
+) -> None:
+    """A notch under a proximity probe (or inverted logic) gives a pulse that goes low at the
+    mark: ``edge = "falling"`` reads it there. On its rising edge the frame would start a
+    quarter of a revolution (the pulse's width) late and the spall be given to another tooth."""
+    inverted = 5.0 - spalled.tach_waveform
+    record = dataclasses.replace(record_of(spalled), channels={"acc": spalled.acceleration, "tach": inverted})
+    campaign = campaign_for(spalled)
+    assert campaign.tachometer is not None
+    falling = dataclasses.replace(campaign, tachometer=dataclasses.replace(campaign.tachometer, edge="falling"))
+    analysis = analyze_record(record, falling, input_sha256="0" * 64)
+    assert_spall_kept(analysis, clean)
+    assert analysis.provenance.parameters["tachometer"]["edge"] == "falling"
+    rising = analyze_record(record, campaign, input_sha256="0" * 64)
+    assert rising.channels[0].worst_tooth != SPALL_TOOTH
+    assert "edge" not in rising.provenance.parameters["tachometer"]  # the default: hashes kept
+
+
 def test_a_clipped_burst_is_handled_not_refused(
     spalled: SyntheticRecord, clean: RecordAnalysis
 ) -> None:

@@ -177,6 +177,7 @@ def test_unknown_keys_are_named(dotted: str, named: str) -> None:
         ("tachometer.kind", "edges", r"\[tachometer\] kind: must be one of 'pulses' \| 'pulse_times'"),
         ("tachometer.shaft", "output", r"\[tachometer\] shaft: must be one of 'pinion' \| 'gear'"),
         ("tachometer.pulses_per_rev", 0, r"\[tachometer\] pulses_per_rev: must be positive"),
+        ("tachometer.edge", "up", r"\[tachometer\] edge: must be one of 'rising' \| 'falling'"),
         ("tachometer.channel", "acc", r"'acc' is declared in \[\[channels\]\] with kind 'accelerometer'"),
         ("tachometer.channel", "speed", r"'speed' is not declared in \[\[channels\]\]"),
         ("channels.0.kind", "microphone", r"\[\[channels\]\]\[1\] kind: must be one of"),
@@ -320,6 +321,7 @@ def campaigns(draw: st.DrawFn) -> Campaign:
             kind=draw(st.sampled_from(["pulses", "pulse_times"])),
             shaft=draw(st.sampled_from(["pinion", "gear"])),
             pulses_per_rev=draw(st.integers(1, 360)),
+            edge=draw(st.sampled_from(["rising", "falling"])),
         )
     teeth = draw(st.one_of(st.none(), st.tuples(st.integers(3, 500), st.integers(3, 500))))
     files = draw(st.lists(names, max_size=3, unique=True))
