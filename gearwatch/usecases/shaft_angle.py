@@ -23,7 +23,7 @@ from dsp.tach import (
     pulse_times_from_waveform,
     pulse_times_from_waveform_blocks,
 )
-from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.campaign import Campaign, RecordData, TachometerConfig
 from gearwatch.floor.errors import RecordFormatError, RecordRejected
 from gearwatch.floor.results import AnalysisParameters
 from gearwatch.usecases.signal_checks import ScannedSignal, refuse_impossible_magnitudes
@@ -143,16 +143,78 @@ def _analyze_tach(
                 pulse_times_from_waveform(raw, sample_rate_hz, edge=config.edge)
                 if config.kind == "pulses" else raw
             )
-        return analyze_tachometer(
-            pulse_times_s,
-            config.pulses_per_rev,
-            max_speed_variation=params.max_speed_variation,
-            min_revolutions=params.min_revolutions,
-            min_speed_rpm=params.min_speed_rpm,
-            max_speed_rpm=params.max_speed_rpm,
-        )
+        try:
+            tach = _tach_analysis(pulse_times_s, config.pulses_per_rev, params)
+        except TachometerError as error:
+            tach, failure = None, error
+        if config.kind == "pulses" and (
+            tach is None or tach.bridged_spans_s
+            or _stops_short(pulse_times_s, raw.size / sample_rate_hz)
+        ):
+            # fixed levels may have missed edges of a waveform whose levels drift or fade: read
+            # it against its local levels, and keep that reading if it is better
+            retried = _with_tracking_levels(raw, sample_rate_hz, pulse_times_s, config, params,
+                                            block_samples)
+            if retried is not None and (tach is None or _better(retried, tach)):
+                tach = retried
+        if tach is None:
+            raise failure
+        return tach
     except RecordOutOfTachLimits as error:
         raise _RefusedWithAWorkingTach(f"tachometer: {error}") from error
     except TachometerError as error:
         raise RecordRejected(f"tachometer: {error}") from error
+
+
+def _tach_analysis(pulse_times_s: np.ndarray, pulses_per_rev: int, params: AnalysisParameters) -> TachAnalysis:
+    return analyze_tachometer(
+        pulse_times_s,
+        pulses_per_rev,
+        max_speed_variation=params.max_speed_variation,
+        min_revolutions=params.min_revolutions,
+        min_speed_rpm=params.min_speed_rpm,
+        max_speed_rpm=params.max_speed_rpm,
+    )
+
+
+def _bridged_s(tach: TachAnalysis) -> float:
+    return sum(hi - lo for lo, hi in tach.bridged_spans_s)
+
+
+def _better(retried: TachAnalysis, first: TachAnalysis) -> bool:
+    """Less bridged, or as little bridged and more revolutions."""
+    return (_bridged_s(retried), -retried.whole_revolutions) < (_bridged_s(first), -first.whole_revolutions)
+
+
+def _stops_short(pulse_times_s: np.ndarray, duration_s: float) -> bool:
+    """The pulses start or end more than 3 periods inside the record (a tach that fades, or that
+    drifts out of the fixed levels, at one end)."""
+    if pulse_times_s.size < 3:
+        return False
+    period = float(np.median(np.diff(pulse_times_s)))
+    return bool(pulse_times_s[0] > 3 * period or duration_s - pulse_times_s[-1] > 3 * period)
+
+
+def _with_tracking_levels(
+    raw: Any,
+    sample_rate_hz: float,
+    first_reading: np.ndarray,
+    config: TachometerConfig,
+    params: AnalysisParameters,
+    block_samples: int,
+) -> TachAnalysis | None:
+    """The tach read against its local levels (:mod:`dsp.tachlevels`), or ``None`` when that
+    fails too or the first reading gave no period to size the levels' window by."""
+    # scipy.ndimage only for a drifting tach: the chain with a sound tach loads no scipy
+    from dsp.tachlevels import pulse_times_tracking_levels
+
+    if first_reading.size < 3:
+        return None
+    period_s = float(np.median(np.diff(first_reading)))
+    try:
+        pulses = pulse_times_tracking_levels(raw, sample_rate_hz, period_s,
+                                             block_samples=block_samples, edge=config.edge)
+        return _tach_analysis(pulses, config.pulses_per_rev, params)
+    except TachometerError:
+        return None
 

@@ -204,6 +204,24 @@ def test_a_tach_whose_pulse_goes_low_is_read_on_its_falling_edge(
     assert "edge" not in rising.provenance.parameters["tachometer"]  # the default: hashes kept
 
 
+@pytest.mark.parametrize("fault", ["drift", "fade"])
+def test_a_tach_whose_levels_drift_or_fade_is_read_against_its_local_levels(
+    spalled: SyntheticRecord, clean: RecordAnalysis, fault: str
+) -> None:
+    """A proximity probe's gap voltage drifting by ±3 V on a 5-V pulse, or a pulse fading to
+    30 % of its height: the fixed levels lose many of the edges; the tach is read again against
+    its local levels (dsp.tachlevels) and (nearly) every revolution is kept."""
+    t = np.arange(spalled.tach_waveform.size) / spalled.sample_rate_hz
+    tach = (spalled.tach_waveform + 3.0 * np.sin(2 * np.pi * t / 3.0) if fault == "drift"
+            else spalled.tach_waveform * np.linspace(1.0, 0.3, t.size))
+    record = dataclasses.replace(record_of(spalled), channels={"acc": spalled.acceleration, "tach": tach})
+    analysis = analyze_record(record, campaign_for(spalled), input_sha256="0" * 64)
+    assert analysis.quality.angle_source == "tachometer"
+    assert not analysis.quality.tach_repairs
+    assert analysis.channels[0].revolutions >= clean.channels[0].revolutions - 1
+    assert_spall_kept(analysis, clean)
+
+
 def test_a_clipped_burst_is_handled_not_refused(
     spalled: SyntheticRecord, clean: RecordAnalysis
 ) -> None:
