@@ -37,6 +37,11 @@ Scored (the tach is used only to score):
   ``benchmarks/bench_detection.py`` evaluates them: :func:`_product_first_alarm`), and in how many
   campaigns each chain's first alarm names the spalled tooth.
 
+Study switches: ``--no-guard`` (with ``--no-hint``) keeps the tooth frame of a day whose speed
+came from the spectrum, and ``GW_SPEED_STUDY=1`` adds to each row the days' spectrum speed against
+the tach's and the line families' scores (docs/tachless.md, "Can the spectrum's speed be
+trusted").
+
 Seeds 1000–1009 were used while choosing the refusal thresholds of :mod:`dsp.toothframe`
 (development); the table reports them apart from the held-out seeds 2000–2019. Later sessions
 spent further ranges once each (3000–9219, docs/tachless.md); 1000–1019 were dumped to choose the
@@ -294,6 +299,26 @@ def _delay_between(a: np.ndarray, b: np.ndarray) -> int:
     return int(np.argmax(full))
 
 
+def _speed_study(noisy: np.ndarray, fs: float, spec: Spec, tach_result: Any, tl: Any) -> dict[str, float]:
+    """The tach-less day's speed against the tach's, and the spectrum's family scores (study)."""
+    from dsp.meshspectrum import pair_speed_scores
+
+    out: dict[str, float] = {"tach_rpm": float(tach_result.speed_rpm), "tachless_rpm": float(tl.speed_rpm)}
+    try:
+        proposals, scores = pair_speed_scores(noisy, fs, spec.pinion_teeth, spec.gear_teeth,
+                                              min_shaft_hz=10.0 / (noisy.size / fs))
+    except Exception:
+        return out
+    order = np.argsort(scores)[::-1]
+    best = proposals[order[0]]
+    rivals = [i for i in order[1:] if abs(proposals[i] / best - 1) > 0.02]
+    out["best_score"] = float(scores[order[0]])
+    if rivals:
+        out["rival_score"] = float(scores[rivals[0]])
+        out["rival_ratio"] = float(proposals[rivals[0]] / best)
+    return out
+
+
 def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
                  simulator: str = "physics", random_start: bool = True) -> dict[str, Any]:
     days = (_simulate_days(spec, seconds, cache) if simulator == "physics"
@@ -317,6 +342,7 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
     by_pulses: list[str] = []
     pulse_offsets: list[float] = []  # teeth, the campaign frame against the founding day's
     angles: list[list[Any]] = []  # per tach-less day: harmonic, drift pass, speed variation
+    speeds: list[dict[str, float]] = []  # GW_SPEED_STUDY: the spectrum's speed against the tach's
     spm = params.samples_per_mesh
     n = spec.pinion_teeth * spm
     reasons: list[str] = []
@@ -356,6 +382,8 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         angles.append([q.get("harmonic"), q.get("line_followed_along_drift"),
                        None if not q else round(float(q["speed_variation"]), 4),
                        q.get("harmonic_disagreement_teeth")])
+        if os.environ.get("GW_SPEED_STUDY"):
+            speeds.append(_speed_study(noisy, fs, spec, tach_result, tl))
         if not channel.teeth:
             tl_teeth.append(None)
             alignment.append("refused" if frame.get("kind") == "refused" else "no-angle")
@@ -400,7 +428,7 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         "seed": spec.seed, "simulator": simulator, "teeth": [spec.pinion_teeth, spec.gear_teeth],
         "noise_ratio": round(spec.noise_ratio, 2), "spall_tooth": spec.spall_tooth,
         "onset_day": spec.onset_day, "alignment": alignment, "alignment_by_pulses": by_pulses,
-        "pulse_offsets_teeth": pulse_offsets, "angles": angles,
+        "pulse_offsets_teeth": pulse_offsets, "angles": angles, "speeds": speeds,
         "margins": margins,
         "tach_first_alarm": [tach_day, tach_tooth], "tachless_first_alarm": [tl_day, tl_tooth],
         "product_tach_first_alarm": [product_tach_day, product_tach_tooth],
@@ -507,6 +535,8 @@ def main() -> int:
     parser.add_argument("--cache", default=".bench-cache/tachless")
     parser.add_argument("--json", default=None)
     parser.add_argument("--no-hint", action="store_true", help="no nominal speed: find it in the spectrum")
+    parser.add_argument("--no-guard", action="store_true",
+                        help="with --no-hint: keep the tooth frame of a day whose speed came from the spectrum (study)")
     parser.add_argument("--same-start", action="store_true",
                         help="do not crop a random 0–2 pinion revolutions off each record's start "
                              "(the simulators start every day at the same shaft angle)")
@@ -516,6 +546,10 @@ def main() -> int:
                         help="indep: in-record speed drift drawn in 0 … this (default 0.05)")
     args = parser.parse_args()
     MAX_DRIFT = args.max_drift
+    if args.no_guard:
+        import gearwatch.usecases.analyze as analyze_module
+
+        analyze_module.NO_HINT_REFUSAL = ""  # the day keeps its frame (study: how often wrong)
     groups = ({"seeds": _seeds(args.seeds)} if args.seeds
               else {"development": list(DEV_SEEDS), "held-out": list(HELD_OUT_SEEDS)})
     cache = Path(args.cache)

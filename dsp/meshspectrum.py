@@ -361,6 +361,37 @@ def estimate_pair_speed(
     >>> round(estimate_pair_speed(x, fs, z1, z2, min_shaft_hz=2.0), 2)
     23.0
     """
+    proposals, scores = pair_speed_scores(
+        signal, sample_rate_hz, pinion_teeth, gear_teeth, min_shaft_hz=min_shaft_hz,
+        harmonics=harmonics, peak_count=peak_count, relative_tolerance=relative_tolerance,
+    )
+    best = int(np.argmax(scores))
+    if not scores[best] > 0.0:
+        raise TachlessError(
+            f"no mesh-line family of a {pinion_teeth}/{gear_teeth} pair in the spectrum "
+            f"(best score {scores[best]:.1f} ≤ 0)"
+        )
+    return float(proposals[best] / pinion_teeth)
+
+
+def pair_speed_scores(
+    signal: ArrayLike,
+    sample_rate_hz: float,
+    pinion_teeth: int,
+    gear_teeth: int,
+    *,
+    min_shaft_hz: float,
+    harmonics: int = 4,
+    peak_count: int = 20,
+    relative_tolerance: float = 3e-4,
+) -> tuple[FloatArray, FloatArray]:
+    """Every proposed mesh frequency (Hz) of :func:`estimate_pair_speed` and its score.
+
+    Raises
+    ------
+    TachlessError
+        No spectral line in the mesh-frequency search range.
+    """
     prominence, freq = line_prominence(signal, sample_rate_hz)
     bin_hz = float(freq[1])
     max_hz = 0.45 * sample_rate_hz
@@ -392,13 +423,7 @@ def estimate_pair_speed(
                     score += 0.5 * (height(h * mesh_hz + k * mesh_hz / teeth)
                                     + height(h * mesh_hz - k * mesh_hz / teeth))
         scores.append(score)
-    best = int(np.argmax(scores))
-    if not scores[best] > 0.0:
-        raise TachlessError(
-            f"no mesh-line family of a {pinion_teeth}/{gear_teeth} pair in the spectrum "
-            f"(best score {scores[best]:.1f} ≤ 0)"
-        )
-    return float(proposals[best] / pinion_teeth)
+    return np.asarray(proposals, dtype=np.float64), np.asarray(scores, dtype=np.float64)
 
 
 def mesh_line_hz(
