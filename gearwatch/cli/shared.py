@@ -169,6 +169,8 @@ def print_report(analysis: Any) -> None:
             f"{quality.glitch_samples} glitch, {quality.dropout_samples} dropout, "
             f"{quality.clipped_samples} clipped sample(s) bridged)"
         )
+    for name, reason in quality.refused_channels.items():
+        print(f"channel {name} left out: {reason}")
     for channel in analysis.channels:
         print(f"\nchannel {channel.channel}")
         metrics = "  ".join(f"{k}={v:.3g}" for k, v in channel.metrics.items())

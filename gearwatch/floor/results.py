@@ -211,6 +211,9 @@ class Quality:
     """Empty when per-tooth results are given; else why they are not (no angle, refused frame)."""
     tooth_frames: dict[str, dict[str, Any]] = field(default_factory=dict)
     """Per accelerometer channel, :attr:`ChannelAnalysis.tooth_frame`."""
+    refused_channels: dict[str, str] = field(default_factory=dict)
+    """Accelerometer channels left out of this record, each with its reason (a dead, clipped or
+    corrupt sensor): the others are analysed. A record is refused only when every one is."""
 
     score: float | None = None
     """Data-quality score in [0, 1] of the record: its weakest channel's

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -42,7 +42,7 @@ from dsp.toothscore import (
     tooth_scores,
 )
 from dsp.tsa import difference_signal, regular_signal, residual_signal
-from gearwatch.floor.campaign import Campaign, RecordData
+from gearwatch.floor.campaign import Campaign, ChannelConfig, RecordData
 from gearwatch.floor.errors import RecordFormatError, RecordRejected
 from gearwatch.floor.results import (
     AnalysisParameters,
@@ -196,17 +196,17 @@ def analyze_record(
     accelerometers = campaign.accelerometer_channels
     if not accelerometers:
         raise RecordFormatError("the manifest declares no accelerometer channel")
-    # every channel's checks before any heavy work: a bad channel rejects the record at once
-    scans = {channel.name: checked_signal(record, channel.name, block_samples, params)
-             for channel in accelerometers}
+    # every channel's checks before any heavy work: a bad channel is left out (with its reason),
+    # the record is refused only when every channel is
+    scans, refused = _checked_channels(record, accelerometers, block_samples, params)
     shaft = record_shaft_angle(record, campaign, params, sample_rate_hz, block_samples, scans)
     if isinstance(shaft, str):
-        return _raw_metrics_only(shaft, scans, campaign, params, input_sha256)
+        return _raw_metrics_only(shaft, scans, campaign, params, input_sha256, refused)
     tach, pinion_per_tach_rev = shaft.tach, shaft.pinion_per_tach_rev
     try:
         channels = _analyzed_channels(
             scans, sample_rate_hz, shaft, campaign, params, has_teeth, baselines, block_samples,
-            tooth_frames, input_sha256,
+            tooth_frames, input_sha256, refused,
         )
     except RecordRejected as error:
         if shaft.source == "tachometer":
@@ -215,7 +215,8 @@ def analyze_record(
         # mesh-phase angle leaves too little for the averages (e.g. revolutions rejected as
         # outliers on a short record whose speed swings): the reason says so.
         return _raw_metrics_only(
-            f"mesh-phase angle: {' '.join(str(error).split())}", scans, campaign, params, input_sha256
+            f"mesh-phase angle: {' '.join(str(error).split())}", scans, campaign, params,
+            input_sha256, refused,
         )
     pinion_rpm = tach.mean_rpm * pinion_per_tach_rev
     quality = Quality(
@@ -230,6 +231,7 @@ def analyze_record(
         per_tooth=next((c.tooth_frame["reason"] for c in channels
                         if c.tooth_frame.get("kind") == "refused"), ""),
         tooth_frames={c.channel: c.tooth_frame for c in channels},
+        refused_channels=refused,
     )
     quality = _with_channel_quality(quality, channels)
     provenance = _provenance(campaign, params, input_sha256)
@@ -243,6 +245,30 @@ def analyze_record(
         samples_per_rev=first.samples_per_rev,
     )
 
+
+
+def _checked_channels(
+    record: RecordData,
+    accelerometers: Sequence[ChannelConfig],
+    block_samples: int,
+    params: AnalysisParameters,
+) -> tuple[dict[str, ScannedSignal], dict[str, str]]:
+    """Each accelerometer channel's checks (:func:`checked_signal`): the channels that pass, and
+    the reasons of those that do not. Every channel refused refuses the record (the first one's
+    reason); a missing channel (a format error) always does."""
+    scans: dict[str, ScannedSignal] = {}
+    refused: dict[str, str] = {}
+    first_error: RecordRejected | None = None
+    for channel in accelerometers:
+        try:
+            scans[channel.name] = checked_signal(record, channel.name, block_samples, params)
+        except RecordRejected as error:
+            refused[channel.name] = str(error)
+            first_error = first_error or error
+    if not scans:
+        assert first_error is not None
+        raise first_error
+    return scans, refused
 
 def _provenance(
     campaign: Campaign, params: AnalysisParameters, input_sha256: str
@@ -303,27 +329,58 @@ def _analyzed_channels(
     block_samples: int,
     tooth_frames: Mapping[str, ToothFrameReference] | None,
     input_sha256: str,
+    refused: dict[str, str],
 ) -> list[ChannelAnalysis]:
-    """Every accelerometer channel through the angle-domain chain (:func:`_analyze_channel`)."""
+    """Every accelerometer channel that passed its checks through the angle-domain chain
+    (:func:`_analyze_channel`). A channel the chain refuses (too many revolutions rejected, too
+    few left) joins ``refused``; when every channel is refused the first one's reason refuses
+    the record."""
+    channels: list[ChannelAnalysis] = []
+    first_error: RecordRejected | None = None
+    for name in scans:
+        try:
+            channels.append(_one_channel(name, scans, sample_rate_hz, shaft, campaign, params,
+                                         has_teeth, baselines, block_samples, tooth_frames,
+                                         input_sha256))
+        except RecordRejected as error:
+            refused[name] = str(error)
+            first_error = first_error or error
+    if not channels:
+        assert first_error is not None
+        raise first_error
+    return channels
+
+
+def _one_channel(
+    name: str,
+    scans: Mapping[str, ScannedSignal],
+    sample_rate_hz: float,
+    shaft: ShaftAngle,
+    campaign: Campaign,
+    params: AnalysisParameters,
+    has_teeth: bool,
+    baselines: Mapping[str, Baselines],
+    block_samples: int,
+    tooth_frames: Mapping[str, ToothFrameReference] | None,
+    input_sha256: str,
+) -> ChannelAnalysis:
     tach, pinion_per_tach_rev = shaft.tach, shaft.pinion_per_tach_rev
-    accelerometers = campaign.accelerometer_channels
-    return [
-        _analyze_channel(
-            name=channel.name,
-            signal=scans[channel.name],
+    return _analyze_channel(
+            name=name,
+            signal=scans[name],
             sample_rate_hz=sample_rate_hz,
             tach=tach,
             campaign=campaign,
             params=params,
             has_teeth=has_teeth,
             pinion_per_tach_rev=pinion_per_tach_rev,
-            baselines=baselines.get(channel.name, Baselines()),
+            baselines=baselines.get(name, Baselines()),
             block_samples=block_samples,
             tach_on_pinion=shaft.tach_on_pinion,
             frame_placement=(
                 None if shaft.source == "tachometer"
                 else _FramePlacement(
-                    reference=None if tooth_frames is None else tooth_frames.get(channel.name),
+                    reference=None if tooth_frames is None else tooth_frames.get(name),
                     campaign_mode=tooth_frames is not None,
                     record_sha256=input_sha256,
                     refusal=(NO_HINT_REFUSAL if (shaft.tachless or {}).get("speed_from") == "spectrum"
@@ -332,8 +389,6 @@ def _analyzed_channels(
                 )
             ),
         )
-        for channel in accelerometers
-    ]
 
 
 def _raw_metrics_only(
@@ -342,6 +397,7 @@ def _raw_metrics_only(
     campaign: Campaign,
     params: AnalysisParameters,
     input_sha256: str,
+    refused: dict[str, str],
 ) -> RecordAnalysis:
     """A record with no usable shaft angle keeps its whole-record raw metrics (trends go on).
 
@@ -369,6 +425,7 @@ def _raw_metrics_only(
         glitch_samples=repairs["glitch_samples"],
         dropout_samples=repairs["dropout_samples"],
         clipped_samples=repairs["clipped_samples"],
+        refused_channels=refused,
     )
     return RecordAnalysis(
         channels=channels, quality=quality,

@@ -128,6 +128,8 @@ def checked_signal(
         top, bottom = max(top, spike_top), min(bottom, spike_bottom)
     if not np.isfinite(top):
         raise RecordRejected(f"channel {name!r} holds no valid sample (all NaN, inf or glitches)")
+    if top == bottom:
+        raise RecordRejected(f"channel {name!r} is constant ({top:g}): a dead or disconnected sensor")
     parts: list[SampleDefects] = []
     shift = None
     sums = np.zeros(4)

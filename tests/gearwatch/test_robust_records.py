@@ -10,6 +10,7 @@ import pytest
 
 from dsp.synthetic import SyntheticRecord, synthetic_gear_record
 from dsp.tach import analyze_tachometer, pulse_times_from_waveform
+from gearwatch.floor.campaign import Campaign, ChannelConfig, RecordData
 from gearwatch.floor.errors import RecordRejected
 from gearwatch.floor.results import RecordAnalysis
 from gearwatch.usecases.analyze import analyze_record
@@ -220,6 +221,41 @@ def test_a_tach_whose_levels_drift_or_fade_is_read_against_its_local_levels(
     assert not analysis.quality.tach_repairs
     assert analysis.channels[0].revolutions >= clean.channels[0].revolutions - 1
     assert_spall_kept(analysis, clean)
+
+
+def _two_accelerometers(spalled: SyntheticRecord, second: np.ndarray) -> tuple[RecordData, Campaign]:
+    campaign = campaign_for(spalled)
+    channels = (ChannelConfig("acc", "accelerometer"), ChannelConfig("acc2", "accelerometer"),
+                ChannelConfig("tach", "tachometer"))
+    record = dataclasses.replace(record_of(spalled), channels={
+        "acc": spalled.acceleration, "acc2": second, "tach": spalled.tach_waveform})
+    return record, dataclasses.replace(campaign, channels=channels)
+
+
+@pytest.mark.parametrize(
+    ("second", "reason"),
+    [
+        ("dead", "is constant (0): a dead or disconnected sensor"),
+        ("clipped", "defective samples"),
+        ("nan", "defective samples"),
+    ],
+)
+def test_a_bad_second_sensor_is_left_out_not_the_record(
+    spalled: SyntheticRecord, clean: RecordAnalysis, second: str, reason: str
+) -> None:
+    """One of two accelerometers dead, clipped on every peak or full of NaN: the record is kept
+    with the good one, and the other is named with its reason. Before, it refused the record."""
+    acc = spalled.acceleration
+    bad = {"dead": np.zeros_like(acc), "clipped": np.clip(10 * acc, -1.0, 1.0),
+           "nan": np.where(np.arange(acc.size) % 5 == 0, np.nan, acc)}[second]
+    record, campaign = _two_accelerometers(spalled, bad)
+    analysis = analyze_record(record, campaign, input_sha256="0" * 64)
+    assert [c.channel for c in analysis.channels] == ["acc"]
+    assert reason in analysis.quality.refused_channels["acc2"]
+    assert_spall_kept(analysis, clean)
+    both_bad = dataclasses.replace(record, channels={**record.channels, "acc": np.zeros_like(acc)})
+    with pytest.raises(RecordRejected, match="'acc' is constant"):  # every channel bad: the first's reason
+        analyze_record(both_bad, campaign, input_sha256="0" * 64)
 
 
 def test_a_clipped_burst_is_handled_not_refused(
