@@ -318,6 +318,7 @@ def _tach_parameters(campaign: Campaign) -> dict[str, Any] | None:
         del settings["edge"]
     return settings
 
+
 def _analyzed_channels(
     scans: Mapping[str, ScannedSignal],
     sample_rate_hz: float,
@@ -335,13 +336,25 @@ def _analyzed_channels(
     (:func:`_analyze_channel`). A channel the chain refuses (too many revolutions rejected, too
     few left) joins ``refused``; when every channel is refused the first one's reason refuses
     the record."""
+    tach, pinion_per_tach_rev = shaft.tach, shaft.pinion_per_tach_rev
     channels: list[ChannelAnalysis] = []
     first_error: RecordRejected | None = None
-    for name in scans:
+    for name, signal in scans.items():
+        placement = None if shaft.source == "tachometer" else _FramePlacement(
+            reference=None if tooth_frames is None else tooth_frames.get(name),
+            campaign_mode=tooth_frames is not None,
+            record_sha256=input_sha256,
+            refusal=NO_HINT_REFUSAL if (shaft.tachless or {}).get("speed_from") == "spectrum" else "",
+            unsteady_angle=unsteady_angle(shaft.tachless or {}),
+        )
         try:
-            channels.append(_one_channel(name, scans, sample_rate_hz, shaft, campaign, params,
-                                         has_teeth, baselines, block_samples, tooth_frames,
-                                         input_sha256))
+            channels.append(_analyze_channel(
+                name=name, signal=signal, sample_rate_hz=sample_rate_hz, tach=tach,
+                campaign=campaign, params=params, has_teeth=has_teeth,
+                pinion_per_tach_rev=pinion_per_tach_rev,
+                baselines=baselines.get(name, Baselines()), block_samples=block_samples,
+                tach_on_pinion=shaft.tach_on_pinion, frame_placement=placement,
+            ))
         except RecordRejected as error:
             refused[name] = str(error)
             first_error = first_error or error
@@ -349,46 +362,6 @@ def _analyzed_channels(
         assert first_error is not None
         raise first_error
     return channels
-
-
-def _one_channel(
-    name: str,
-    scans: Mapping[str, ScannedSignal],
-    sample_rate_hz: float,
-    shaft: ShaftAngle,
-    campaign: Campaign,
-    params: AnalysisParameters,
-    has_teeth: bool,
-    baselines: Mapping[str, Baselines],
-    block_samples: int,
-    tooth_frames: Mapping[str, ToothFrameReference] | None,
-    input_sha256: str,
-) -> ChannelAnalysis:
-    tach, pinion_per_tach_rev = shaft.tach, shaft.pinion_per_tach_rev
-    return _analyze_channel(
-            name=name,
-            signal=scans[name],
-            sample_rate_hz=sample_rate_hz,
-            tach=tach,
-            campaign=campaign,
-            params=params,
-            has_teeth=has_teeth,
-            pinion_per_tach_rev=pinion_per_tach_rev,
-            baselines=baselines.get(name, Baselines()),
-            block_samples=block_samples,
-            tach_on_pinion=shaft.tach_on_pinion,
-            frame_placement=(
-                None if shaft.source == "tachometer"
-                else _FramePlacement(
-                    reference=None if tooth_frames is None else tooth_frames.get(name),
-                    campaign_mode=tooth_frames is not None,
-                    record_sha256=input_sha256,
-                    refusal=(NO_HINT_REFUSAL if (shaft.tachless or {}).get("speed_from") == "spectrum"
-                             else ""),
-                    unsteady_angle=unsteady_angle(shaft.tachless or {}),
-                )
-            ),
-        )
 
 
 def _raw_metrics_only(
