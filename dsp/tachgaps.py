@@ -59,8 +59,8 @@ class BridgedStretch:
         Median of the regular intervals around it.
     periods : float
         Its duration in local periods; ``round(periods)`` intervals were put in its place.
-        With more than one pulse per revolution :func:`analyze_tachometer` keeps the bridge only
-        when the count is sure: ``|periods − round(periods)| + 2·count_uncertainty ≤ 0.5``
+        With more than one pulse per revolution :func:`dsp.tach.analyze_tachometer` keeps the
+        bridge only when the count is sure: ``|periods − round(periods)| + 2·count_uncertainty ≤ 0.5``
         (otherwise every revolution mark after it could be a fraction of a revolution off; with
         one pulse per revolution every mark is the reference itself, and a miscount only
         mislabels the bridged revolutions, which are not averaged).
@@ -88,24 +88,26 @@ def bridge_unexplained(
     """Replace the stretches of a pulse train that no single repair explains by even pulses.
 
     A burst of interference on the tach cable adds several pulses within one period, a loose
-    connector loses several in a row: :func:`repair_pulse_times` explains one missing or one
-    extra pulse, not these (and inside a burst it may keep a spurious pulse and drop the true
+    connector loses several in a row: :func:`dsp.tach.repair_pulse_times` explains one missing or
+    one extra pulse, not these (and inside a burst it may keep a spurious pulse and drop the true
     one). Here the intervals off their local period by more than ``tolerance`` are grouped into
     stretches (:data:`BRIDGE_MERGE_INTERVALS` apart at most). A stretch that one missing or one
-    extra pulse explains is left for :func:`repair_pulse_times`. Of each other one, the pulses
-    between its last trusted pulse before and its first trusted pulse after
+    extra pulse explains is left for :func:`dsp.tach.repair_pulse_times`. Of each other one,
+    the pulses between its last trusted pulse before and its first trusted pulse after
     (:func:`_phase_consistent_ends`) are removed, and ``round(duration / local period)`` even
     intervals are put in their place. The local period here is not the running median of
-    :func:`repair_pulse_times`, which a burst of many spurious pulses takes over, but
+    :func:`dsp.tach.repair_pulse_times`, which a burst of many spurious pulses takes over, but
     :func:`burst_proof_period`. The speed inside a stretch is then a guess: callers
-    must not average the revolutions it touches (:func:`analyze_tachometer` says which).
+    must not average the revolutions it touches (:func:`dsp.tach.analyze_tachometer` says which).
 
     Parameters
     ----------
     pulse_times_s : array_like
-        Increasing pulse times (s), after :func:`repair_pulse_times`.
+        Increasing pulse times (s) as the edges were found (before
+        :func:`dsp.tach.repair_pulse_times`, which then puts right the lone missing and extra
+        pulses left here).
     tolerance : float
-        Relative tolerance on the period, as for :func:`repair_pulse_times`.
+        Relative tolerance on the period, as for :func:`dsp.tach.repair_pulse_times`.
 
     Returns
     -------
@@ -157,7 +159,7 @@ def bridge_unexplained(
     jitter = _jitter(ratio)
     for first, last in groups:
         if _one_pulse_explains(ratio, first, last, tolerance, jitter):
-            continue  # a lone missing or extra pulse: :func:`repair_pulse_times` puts it right
+            continue  # a lone missing or extra pulse: dsp.tach.repair_pulse_times puts it right
         if last < kept_from:
             continue  # swallowed by the stretch before, whose end moved out over it
         first = max(first, kept_from)  # never reach back into the stretch before
