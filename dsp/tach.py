@@ -20,6 +20,7 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -406,12 +407,16 @@ def pulse_times_from_waveform_blocks(
     block_samples: int,
     overlap_samples: int = 1 << 16,
     edge: Literal["rising", "falling"] = "rising",
+    levels: tuple[float, float] | None = None,
+    transform: Callable[[FloatArray], FloatArray] | None = None,
 ) -> FloatArray:
     """:func:`pulse_times_from_waveform` on a long waveform, one block at a time.
 
     Only one block is converted to float64 at a time, so a memory-mapped hour of waveform needs
-    a few blocks of memory. The Schmitt levels come from the whole waveform
-    (:func:`schmitt_settings`, which samples it). Block ``b`` keeps the edges whose time falls in
+    a few blocks of memory. The Schmitt levels ``(threshold, hysteresis)`` are ``levels`` when
+    given, else those of the whole waveform (:func:`schmitt_settings`, which samples it); a
+    ``transform`` is applied to each block (with its overlap) before it is read (the local
+    scale of :mod:`dsp.tachlevels`). Block ``b`` keeps the edges whose time falls in
     its own span; it looks ``overlap_samples`` back (so the trigger's state is settled, which
     needs at least one pulse period) and as far ahead (so an edge straddling its end is
     complete). The edges are then those of the whole waveform processed at once.
@@ -429,7 +434,7 @@ def pulse_times_from_waveform_blocks(
     x = np.asarray(signal).ravel()
     if block_samples < 1 or overlap_samples < 0:
         raise TachometerError("block_samples must be >= 1 and overlap_samples >= 0")
-    settings = schmitt_settings(x)
+    settings = levels or schmitt_settings(x)
     if settings is None:
         return np.empty(0)
     threshold, hysteresis = settings
@@ -439,6 +444,8 @@ def pulse_times_from_waveform_blocks(
         first = max(0, start - overlap_samples)
         last = min(x.size, stop + overlap_samples)
         block = np.asarray(x[first:last], dtype=np.float64)
+        if transform is not None:
+            block = transform(block)
         edges = pulse_times_from_waveform(
             block, sample_rate_hz, threshold=threshold, hysteresis=hysteresis, edge=edge
         ) + first / float(sample_rate_hz)

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
-from dsp.tach import TachometerError, pulse_times_from_waveform
+from dsp.tach import TachometerError, pulse_times_from_waveform_blocks
 
 FloatArray = NDArray[np.float64]
 
@@ -86,24 +86,20 @@ def pulse_times_tracking_levels(
     if not (np.isfinite(period_s) and period_s > 0):
         raise TachometerError(f"pulse period must be positive, got {period_s}")
     window = max(3, round(LEVEL_WINDOW_PERIODS * period_s * sample_rate_hz))
-    overlap = 2 * window + 16
     typical = _typical_swing(x, window)
     if typical <= 0:
         return np.empty(0)
-    times: list[FloatArray] = []
-    for start in range(0, x.size, block_samples):
-        stop = min(x.size, start + block_samples)
-        first, last = max(0, start - overlap), min(x.size, stop + overlap)
-        segment = np.asarray(x[first:last], dtype=np.float64)
-        if not np.all(np.isfinite(segment)):
+    rail = -0.5 if edge == "rising" else 0.5
+
+    def on_local_scale(block: FloatArray) -> FloatArray:
+        if not np.all(np.isfinite(block)):  # the running levels would hide them
             raise TachometerError("tachometer waveform contains NaN or infinite samples")
-        scaled = _on_local_scale(segment, window, typical, -0.5 if edge == "rising" else 0.5)
-        edges = pulse_times_from_waveform(
-            scaled, sample_rate_hz, threshold=0.0, hysteresis=RELATIVE_HYSTERESIS, edge=edge
-        ) + first / float(sample_rate_hz)
-        keep = (edges >= start / sample_rate_hz) & (edges < stop / sample_rate_hz)
-        times.append(edges[keep])
-    return np.concatenate(times) if times else np.empty(0)
+        return _on_local_scale(block, window, typical, rail)
+
+    return pulse_times_from_waveform_blocks(
+        x, sample_rate_hz, block_samples=block_samples, overlap_samples=2 * window + 16,
+        edge=edge, levels=(0.0, RELATIVE_HYSTERESIS), transform=on_local_scale,
+    )
 
 
 def _local_levels(segment: FloatArray, window: int) -> tuple[FloatArray, FloatArray]:

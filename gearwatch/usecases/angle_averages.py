@@ -171,15 +171,14 @@ def angle_averages(
         revs = revs[skip_pinion_revs:][:keep]
         own_bounds = bounds[skip_pinion_revs:][:keep]
         touched = revolutions_overlapping(own_bounds, block_spans / sample_rate_hz, margin_s)
-        if gaps_s.size:
-            in_gap = revolutions_overlapping(own_bounds, gaps_s - start / sample_rate_hz) & ~touched
-            rejected_gaps += int(in_gap.sum())
-            touched |= in_gap
-            rejected_defective -= int(in_gap.sum())  # counted as tach gaps, not defects
-        outliers = np.zeros_like(touched)
-        outliers[~touched] = revolution_outliers(revs[~touched], outlier_factor)
-        accepted = ~(touched | outliers)
+        # a revolution with a defect counts as defective, else one in a tach gap as a gap
+        in_gap = revolutions_overlapping(own_bounds, gaps_s - start / sample_rate_hz) & ~touched
+        dropped = touched | in_gap
+        outliers = np.zeros_like(dropped)
+        outliers[~dropped] = revolution_outliers(revs[~dropped], outlier_factor)
+        accepted = ~(dropped | outliers)
         rejected_defective += int(touched.sum())
+        rejected_gaps += int(in_gap.sum())
         rejected_outliers += int(outliers.sum())
         good = revs[accepted]
         pinion_sum += good.sum(axis=0)
