@@ -223,7 +223,7 @@ def _first_alarm(day_teeth: list[dict[int, float] | None]) -> tuple[int | None, 
 
 def _campaign_frame_angle_rev(tach: np.ndarray, record: RecordData, campaign: Campaign,
                               params: AnalysisParameters, frame: dict[str, Any],
-                              samples_per_rev: int) -> float:
+                              samples_per_rev: int, tachless: dict[str, Any]) -> float:
     """The tach's pinion angle (revolutions, mod 1) at sample 0 of a tach-less day's
     campaign-frame average.
 
@@ -234,12 +234,14 @@ def _campaign_frame_angle_rev(tach: np.ndarray, record: RecordData, campaign: Ca
     depends on how alike a day's two averages look (a speed sweeping through the path's
     resonances, a fresh spall). The mean over the pulses, not the first pulse alone: along a
     sweep the angle read from the mesh phase wanders with the path's phase, and the average
-    sits where the wander's mean puts it."""
+    sits where the wander's mean puts it. A spectrum speed the revolutions corrected is taken
+    again with the hint the chain used (``tachless["corrected_speed_hint_rpm"]``)."""
     rig = campaign.rig
     assert rig.pinion_teeth is not None and rig.gear_teeth is not None
     angle = mesh_phase_angle({"acc": np.asarray(record.channels["acc"], dtype=np.float64)},
                              record.sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
-                             nominal_pinion_rpm=rig.nominal_pinion_rpm)
+                             nominal_pinion_rpm=tachless.get("corrected_speed_hint_rpm",
+                                                             rig.nominal_pinion_rpm))
     assert not isinstance(angle, str), angle
     synthetic = angle.tach.pulse_times_s
     pulses = pulse_times_from_waveform(tach, record.sample_rate_hz)  # once per pinion revolution
@@ -392,7 +394,7 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
                 margins.append(frame["pinion"]["margin"])
             continue
         tl_teeth.append({t.tooth: t.mci_depth for t in channel.teeth})
-        angle = _campaign_frame_angle_rev(tach, RecordData({"acc": noisy}, fs), without, params, frame, n)
+        angle = _campaign_frame_angle_rev(tach, RecordData({"acc": noisy}, fs), without, params, frame, n, q)
         if pulse_reference is None:
             pulse_reference = angle
         else:
@@ -548,8 +550,10 @@ def main() -> int:
     MAX_DRIFT = args.max_drift
     if args.no_guard:
         import gearwatch.usecases.analyze as analyze_module
+        from dsp.shaftperiod import PeriodCheck
 
-        analyze_module.NO_HINT_REFUSAL = ""  # the day keeps its frame (study: how often wrong)
+        # the day keeps its frame whatever its revolutions say (study: how often wrong)
+        analyze_module.check_shaft_period = lambda *_args, **_kw: PeriodCheck("", {}, {}, {})
     groups = ({"seeds": _seeds(args.seeds)} if args.seeds
               else {"development": list(DEV_SEEDS), "held-out": list(HELD_OUT_SEEDS)})
     cache = Path(args.cache)

@@ -27,6 +27,8 @@ import numpy as np
 from dsp.mci import moving_cepstrum_integral
 from dsp.metrics import crest_factor, envelope_variance, gear_metrics, kurtosis, peak, rms
 from dsp.quality import quality_score, sync_to_noise_db
+from dsp.shaftperiod import MODULI as PERIOD_MODULI
+from dsp.shaftperiod import PeriodCheck, check_shaft_period
 from dsp.tach import TachAnalysis
 from dsp.teeth import (
     per_tooth_difference_stats,
@@ -71,14 +73,13 @@ from gearwatch.usecases.signal_checks import (
     clipped_fraction,
 )
 from gearwatch.usecases.tachless import (
-    NO_HINT_REFUSAL,
+    FramePlacement as _FramePlacement,
+)
+from gearwatch.usecases.tachless import (
     PlacedAverages,
     place_in_tooth_frame,
     tach_frame_fingerprints,
     unsteady_angle,
-)
-from gearwatch.usecases.tachless import (
-    FramePlacement as _FramePlacement,
 )
 
 __all__ = [
@@ -344,7 +345,7 @@ def _analyzed_channels(
             reference=None if tooth_frames is None else tooth_frames.get(name),
             campaign_mode=tooth_frames is not None,
             record_sha256=input_sha256,
-            refusal=NO_HINT_REFUSAL if (shaft.tachless or {}).get("speed_from") == "spectrum" else "",
+            check_period=(shaft.tachless or {}).get("speed_from") == "spectrum",
             unsteady_angle=unsteady_angle(shaft.tachless or {}),
         )
         try:
@@ -426,9 +427,10 @@ def _analyze_channel(
     whole-shaft metrics (no tooth counts) or the tooth frame, the MCI and the per-tooth results."""
     rig = campaign.rig
     pinion_spr, gear_spr, hunting_tach_revs = _grids(campaign, params, has_teeth, tach_on_pinion)
+    check_period = has_teeth and frame_placement is not None and frame_placement.check_period
     angle = _checked_averages(
         name, signal, sample_rate_hz, tach, params, pinion_spr, gear_spr, pinion_per_tach_rev,
-        hunting_tach_revs, block_samples,
+        hunting_tach_revs, block_samples, period_moduli=PERIOD_MODULI if check_period else (),
     )
     quality = _channel_quality(angle, tach, signal)
     curves: dict[str, np.ndarray] = {
@@ -441,8 +443,17 @@ def _analyze_channel(
 
     assert rig.pinion_teeth is not None and rig.gear_teeth is not None
     pinion_teeth = rig.pinion_teeth
+    period = None
+    if check_period and frame_placement is not None and angle.pinion_period_sums is not None:
+        period = check_shaft_period(angle.pinion_period_sums, angle.gear_period_sums,
+                                    rig.pinion_teeth, rig.gear_teeth)
+        if period.refusal and not frame_placement.refusal:
+            frame_placement = dataclasses.replace(
+                frame_placement, refusal=f"tooth frame refused: {period.refusal}")
     placed = _in_tooth_frame(angle, rig.pinion_teeth, rig.gear_teeth, rig.tooth1_pitch_angle_deg,
                              frame_placement)
+    if period is not None:
+        placed.tooth_frame["period_check"] = _period_check_json(period)
     average = placed.pinion_average
     tooth1_pitch_angle_deg, tooth_frame = placed.tooth1_pitch_angle_deg, placed.tooth_frame
     if frame_placement is not None:
@@ -517,6 +528,22 @@ def _grids(
     )
 
 
+def _period_check_json(check: PeriodCheck) -> dict[str, Any]:
+    """The speed check of a spectrum-speed record for ``tooth_frame.period_check``: per prime,
+    how far the average's orders off its multiples stand above noise and how much the residue
+    classes differ (standard errors), and on which wheel that was tested."""
+
+    def z(value: float) -> float | None:
+        return round(value, 2) if math.isfinite(value) else None
+
+    return {
+        "confirmed": not check.refusal,
+        "unfolded_z": {str(m): z(v) for m, v in check.unfolded.items()},
+        "residue_z": {str(m): z(v) for m, v in check.residue.items()},
+        "residue_wheel": {str(m): w for m, w in check.residue_wheel.items()},
+    }
+
+
 def _checked_averages(
     name: str,
     signal: ScannedSignal,
@@ -528,6 +555,7 @@ def _checked_averages(
     pinion_per_tach_rev: float,
     hunting_tach_revs: int,
     block_samples: int,
+    period_moduli: tuple[int, ...] = (),
 ) -> AngleAverages:
     """The channel's synchronous averages, refused when too many revolutions had to be dropped
     or too few are left."""
@@ -537,6 +565,7 @@ def _checked_averages(
             gear_spr, pinion_per_tach_rev, hunting_tach_revs, block_samples,
             signal.defects, params.revolution_outlier_factor,
             tach_gaps_s=np.asarray(tach.bridged_spans_s, dtype=np.float64).reshape(-1, 2),
+            period_moduli=period_moduli,
         )
     except ValueError as error:  # e.g. pulse times outside the record: tach and signal disagree
         raise RecordRejected(f"channel {name!r}: cannot resample to shaft angle: {error}") from error

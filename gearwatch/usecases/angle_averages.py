@@ -19,6 +19,7 @@ from dsp.robust import (
     revolution_outliers,
     revolutions_overlapping,
 )
+from dsp.shaftperiod import PeriodSums, PeriodSumsAccumulator
 from dsp.toothscore import JACKKNIFE_GROUPS
 
 
@@ -58,6 +59,10 @@ class AngleAverages:
     rejected_tach_gaps: int = 0
     """Pinion revolutions dropped because their angle rests on bridged tach pulses
     (:attr:`dsp.tach.TachAnalysis.bridged_spans_s`)."""
+    pinion_period_sums: PeriodSums | None = None
+    """With ``period_moduli``: what :func:`dsp.shaftperiod.check_shaft_period` needs of the
+    accepted pinion revolutions (a tach-less angle whose speed came from the spectrum)."""
+    gear_period_sums: PeriodSums | None = None
 
 
 def _revolution_bounds_s(
@@ -104,6 +109,7 @@ def angle_averages(
     defects: SampleDefects,
     outlier_factor: float,
     tach_gaps_s: np.ndarray | None = None,
+    period_moduli: tuple[int, ...] = (),
 ) -> AngleAverages:
     """Pinion and gear synchronous averages, the record resampled one block at a time.
 
@@ -122,6 +128,10 @@ def angle_averages(
     median). A gear revolution is dropped when any of its samples lies in a dropped pinion
     revolution. So is a pinion revolution that overlaps one of ``tach_gaps_s`` (time spans
     whose angle rests on bridged tach pulses; the signal there is sound and is not bridged).
+
+    ``period_moduli`` (primes): also collect, per wheel, the sums by revolution number modulo
+    each and every order's power (:class:`dsp.shaftperiod.PeriodSums`), to check that the
+    revolutions are true ones.
     """
     whole_tach_revs = (pulse_times_s.size - 1) // pulses_per_rev
     seconds_per_tach_rev = (pulse_times_s[-1] - pulse_times_s[0]) / max(
@@ -139,6 +149,9 @@ def angle_averages(
     # jackknife groups: accepted revolution r (counted over the record) goes to group r mod K
     group_sums = np.zeros((JACKKNIFE_GROUPS, pinion_spr))
     group_counts = np.zeros(JACKKNIFE_GROUPS, dtype=np.int64)
+    pinion_period = PeriodSumsAccumulator(pinion_spr, period_moduli) if period_moduli else None
+    gear_period = PeriodSumsAccumulator(gear_spr, period_moduli) if period_moduli else None
+    gear_index = 0  # record number of the block's first gear revolution
     if whole_tach_revs <= block_tach_revs + hunting_tach_revs:
         plan = [(0, whole_tach_revs, True)]
     else:
@@ -187,7 +200,13 @@ def angle_averages(
         pinion_count += good.shape[0]
         gear_revs = gear_revolutions_from_pinion_grid(revs, gear_spr)
         sample_ok = np.repeat(accepted, pinion_spr)[: gear_revs.size].reshape(gear_revs.shape)
-        gear_good = gear_revs[sample_ok.all(axis=1)]
+        gear_accepted = sample_ok.all(axis=1)
+        gear_good = gear_revs[gear_accepted]
+        if pinion_period is not None and gear_period is not None:
+            first_index = 0 if len(plan) == 1 else round(first_rev * pinion_per_tach_rev)
+            pinion_period.add(good, first_index + np.flatnonzero(accepted))
+            gear_period.add(gear_good, gear_index + np.flatnonzero(gear_accepted))
+        gear_index += gear_revs.shape[0]
         gear_sum += gear_good.sum(axis=0)
         gear_count += gear_good.shape[0]
     pinion_average = pinion_sum / max(pinion_count, 1)
@@ -207,5 +226,7 @@ def angle_averages(
         group_sums,
         group_counts,
         rejected_gaps,
+        None if pinion_period is None else pinion_period.result(),
+        None if gear_period is None else gear_period.result(),
     )
 

@@ -8,13 +8,17 @@ tach is missing or unusable — or, when neither works, the reason as a string.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any, Literal
 
 import numpy as np
 
 from dsp.robust import repair_spans
+from dsp.shaftperiod import MODULI as PERIOD_MODULI
+from dsp.shaftperiod import PeriodSums, check_shaft_period
 from dsp.tach import (
     RecordOutOfTachLimits,
     TachAnalysis,
@@ -23,11 +27,13 @@ from dsp.tach import (
     pulse_times_from_waveform,
     pulse_times_from_waveform_blocks,
 )
+from dsp.tachless import TachlessError, estimate_pair_speed
 from gearwatch.floor.campaign import Campaign, RecordData, TachometerConfig
 from gearwatch.floor.errors import RecordFormatError, RecordRejected
 from gearwatch.floor.results import AnalysisParameters
+from gearwatch.usecases.angle_averages import angle_averages
 from gearwatch.usecases.signal_checks import ScannedSignal, refuse_impossible_magnitudes
-from gearwatch.usecases.tachless import mesh_phase_angle
+from gearwatch.usecases.tachless import MeshPhaseAngle, mesh_phase_angle
 
 
 def _pinion_revs_per_tach_rev(campaign: Campaign) -> float:
@@ -89,12 +95,15 @@ def record_shaft_angle(
     # The mesh phase is read from the channels with their glitches, dropouts and clipped
     # stretches bridged, as the averages are: one corrupt sample (3e38) flattens the whole
     # record's spectrum and no mesh line would stand out.
+    signals = {name: repair_spans(scan.samples, spans) if (spans := scan.defects.spans()).size
+               else scan.samples for name, scan in scans.items()}
     mesh = mesh_phase_angle(
-        {name: repair_spans(scan.samples, spans) if (spans := scan.defects.spans()).size else scan.samples
-         for name, scan in scans.items()},
-        sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
+        signals, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
         nominal_pinion_rpm=rig.nominal_pinion_rpm,
     )
+    if rig.nominal_pinion_rpm is None:
+        mesh = _checked_spectrum_speed(mesh, signals, scans, sample_rate_hz, rig.pinion_teeth,
+                                       rig.gear_teeth, params, block_samples)
     if isinstance(mesh, str):
         return f"no shaft angle: {tach_failure}; mesh phase: {mesh}"
     return ShaftAngle(
@@ -102,6 +111,130 @@ def record_shaft_angle(
         tach_failure=tach_failure if campaign.tachometer is not None else "",
         tachless=mesh.summary,
     )
+
+
+MAX_SPEED_CORRECTIONS = 3
+"""How often a spectrum speed is corrected by what its revolutions say before it is left to be
+refused (:func:`_speed_corrected_by_revolutions`)."""
+RESCUE_SPEED_FACTORS = (2, 3, 4)
+"""When the spectrum's speed gives no angle at all — a sub-multiple of the mesh frequency taken
+for it leaves too few revolutions — these multiples of it are tried as hints
+(:func:`_checked_spectrum_speed`)."""
+
+
+def _checked_spectrum_speed(
+    mesh: MeshPhaseAngle | str,
+    signals: Mapping[str, np.ndarray],
+    scans: Mapping[str, ScannedSignal],
+    sample_rate_hz: float,
+    pinion_teeth: int,
+    gear_teeth: int,
+    params: AnalysisParameters,
+    block_samples: int,
+) -> MeshPhaseAngle | str:
+    """The mesh-phase angle of a rig without ``nominal_pinion_rpm``, its speed checked and
+    corrected by its own revolutions (:func:`_speed_corrected_by_revolutions`). When the
+    spectrum's speed gave no angle (``mesh`` is the refusal), :data:`RESCUE_SPEED_FACTORS` × that
+    speed are tried and the first angle the revolutions confirm is kept; none: the refusal."""
+    args = (signals, scans, sample_rate_hz, pinion_teeth, gear_teeth, params, block_samples)
+    if not isinstance(mesh, str):
+        return _speed_corrected_by_revolutions(mesh, *args)[0]
+    duration_s = min(x.size for x in signals.values()) / sample_rate_hz
+    for x in signals.values():
+        try:
+            spectrum_hz = estimate_pair_speed(np.asarray(x, dtype=np.float64), sample_rate_hz,
+                                              pinion_teeth, gear_teeth, min_shaft_hz=10.0 / duration_s)
+        except TachlessError:
+            continue
+        for factor in RESCUE_SPEED_FACTORS:
+            hint_rpm = 60.0 * spectrum_hz * factor
+            rescued = mesh_phase_angle(signals, sample_rate_hz, pinion_teeth, gear_teeth, params,
+                                       nominal_pinion_rpm=hint_rpm)
+            if isinstance(rescued, str):
+                continue
+            start = MeshPhaseAngle(rescued.tach, {
+                **rescued.summary, "speed_from": "spectrum", "speed_corrected_by": str(factor),
+                "spectrum_speed_rpm": round(60.0 * spectrum_hz, 3), "corrected_speed_hint_rpm": hint_rpm,
+            })
+            corrected, confirmed = _speed_corrected_by_revolutions(
+                start, *args, total=Fraction(factor), spectrum_rpm=60.0 * spectrum_hz)
+            if confirmed:
+                return corrected
+        break  # the first channel with a spectrum speed decides, as in mesh_phase_angle
+    return mesh
+
+
+def _speed_corrected_by_revolutions(
+    mesh: MeshPhaseAngle,
+    signals: Mapping[str, np.ndarray],
+    scans: Mapping[str, ScannedSignal],
+    sample_rate_hz: float,
+    pinion_teeth: int,
+    gear_teeth: int,
+    params: AnalysisParameters,
+    block_samples: int,
+    *,
+    total: Fraction = Fraction(1),
+    spectrum_rpm: float | None = None,
+) -> tuple[MeshPhaseAngle, bool]:
+    """A speed found in the spectrum, corrected when its revolutions show it a whole ratio off;
+    and whether the revolutions of the angle returned are confirmed as true ones.
+
+    Without ``[rig] nominal_pinion_rpm`` the speed is the mesh-line family's best fit, which is
+    sometimes 2, 2.5 or 3 times the true one, or half of it (docs/tachless.md). The angle's
+    revolutions say which (:attr:`dsp.shaftperiod.PeriodCheck.speed_factor`: residue classes
+    that differ mean too fast, orders without content too slow), one prime at a time, so the
+    angle is taken again at the corrected speed, as if it had been the hint, up to
+    :data:`MAX_SPEED_CORRECTIONS` times (2.5× takes two: ÷5, then ×2). The per-channel check of
+    the final angle still decides whether per-tooth numbers are given
+    (:mod:`gearwatch.usecases.analyze`); ``summary["speed_corrected_by"]`` says what was
+    done, ``summary["spectrum_speed_rpm"]`` what the spectrum gave and
+    ``summary["corrected_speed_hint_rpm"]`` the hint the final angle was taken with.
+    """
+    if spectrum_rpm is None:
+        spectrum_rpm = float(mesh.tach.mean_rpm)
+    for attempt in range(MAX_SPEED_CORRECTIONS + 1):
+        name = str(mesh.summary["channel"])
+        try:
+            pinion_sums, gear_sums = _period_sums(mesh, scans[name], sample_rate_hz, pinion_teeth,
+                                                  gear_teeth, params, block_samples)
+        except ValueError:  # the angle cannot resample the record: left to the chain's refusal
+            return mesh, False
+        check = check_shaft_period(pinion_sums, gear_sums, pinion_teeth, gear_teeth)
+        factor = check.speed_factor
+        if not check.refusal or factor is None or attempt == MAX_SPEED_CORRECTIONS:
+            return mesh, not check.refusal
+        hint_rpm = float(mesh.tach.mean_rpm * factor)
+        corrected = mesh_phase_angle(signals, sample_rate_hz, pinion_teeth, gear_teeth, params,
+                                     nominal_pinion_rpm=hint_rpm)
+        if isinstance(corrected, str):
+            return mesh, False
+        total *= factor
+        mesh = MeshPhaseAngle(corrected.tach, {
+            **corrected.summary, "speed_from": "spectrum", "speed_corrected_by": str(total),
+            "spectrum_speed_rpm": round(spectrum_rpm, 3), "corrected_speed_hint_rpm": hint_rpm,
+        })
+    return mesh, False
+
+
+def _period_sums(
+    mesh: MeshPhaseAngle,
+    scan: ScannedSignal,
+    sample_rate_hz: float,
+    pinion_teeth: int,
+    gear_teeth: int,
+    params: AnalysisParameters,
+    block_samples: int,
+) -> tuple[PeriodSums, PeriodSums | None]:
+    """The pinion's and the gear's :class:`dsp.shaftperiod.PeriodSums` on the mesh-phase angle."""
+    angle = angle_averages(
+        scan.samples, sample_rate_hz, mesh.tach.pulse_times_s, 1,
+        pinion_teeth * params.samples_per_mesh, gear_teeth * params.samples_per_mesh, 1.0,
+        gear_teeth // math.gcd(pinion_teeth, gear_teeth), block_samples, scan.defects,
+        params.revolution_outlier_factor, period_moduli=PERIOD_MODULI,
+    )
+    assert angle.pinion_period_sums is not None  # asked for by period_moduli
+    return angle.pinion_period_sums, angle.gear_period_sums
 
 
 class _RefusedWithAWorkingTach(RecordRejected):

@@ -8,7 +8,10 @@ record whose tach channel is dead:
    harmonic that give the steadiest pulses; the refusal reasons of :mod:`dsp.tachless` when
    none does. The speed comes from ``[rig] nominal_pinion_rpm`` when given, else from the
    comb of the spectrum's lines, checked against both shafts (the comb often locks on the
-   other wheel's shaft).
+   other wheel's shaft); such a speed is then checked and corrected by the angle's own
+   revolutions (:mod:`dsp.shaftperiod`, :mod:`gearwatch.usecases.shaft_angle`), and a
+   record whose revolutions do not confirm it gets no per-tooth numbers
+   (:attr:`FramePlacement.check_period`).
 2. :func:`place_in_tooth_frame` — without a tach there is no absolute tooth 1: the averages
    are moved into the *campaign's* tooth frame by matching their tooth fingerprint to the
    campaign's reference (:mod:`dsp.toothframe`), or refused with the correlation margin.
@@ -77,11 +80,6 @@ HARMONICS_TRIED = 3
 """…the three with the most prominent lines, each demodulated in full."""
 SPEED_HINT_FRACTION = 0.2
 """The mesh line is looked for within ±20 % of the speed hint."""
-NO_HINT_REFUSAL = (
-    "tooth frame refused: the speed came from the spectrum ([rig] nominal_pinion_rpm not given), "
-    "which can pick a wrong line family and give a wrong angle (measured: 6 wrong days in 140, "
-    "docs/tachless.md); give the nominal speed for per-tooth results"
-)
 SPECTRUM_SEARCH_FRACTION = 0.05
 """Around the speed found in the spectrum, the mesh line is looked for within ±5 % (a drifting
 speed smears the line; the tracked band follows it, :func:`dsp.tachless.mesh_ridge_cycles`)."""
@@ -384,6 +382,10 @@ class FramePlacement:
     unsteady_angle: str = ""
     """Non-empty (:func:`unsteady_angle`): the alignment must stand on the waveform match
     alone, without the per-tooth energy pattern's confirmation."""
+    check_period: bool = False
+    """The speed came from the spectrum (no ``[rig] nominal_pinion_rpm``): it can be a wrong
+    member of the mesh-line family, so the revolutions must prove to be true ones
+    (:func:`dsp.shaftperiod.check_shaft_period`) before any per-tooth number is given."""
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,11 @@ def record(
     start_rev: float = 0.0,
     tach: str = "none",
     seed: int = 0,
+    harmonics: tuple[float, ...] = (1.0, 0.5, 0.25),
+    pattern: float = 0.25,
 ) -> dict[str, np.ndarray]:
+    """One day's record. ``harmonics``: the mesh harmonics' amplitudes (h = 1, 2, …); the
+    per-tooth pattern (amplitude ``pattern``) modulates the strongest of them."""
     rng_gear = np.random.default_rng(1234)          # the same gears every day
     pitch = rng_gear.normal(0.0, 1.0, PINION)
     rng = np.random.default_rng(seed * 1000 + day)
@@ -38,11 +42,13 @@ def record(
     drift = rng.uniform(-0.004, 0.004)
     theta = start_rev + f0 * (t + 0.5 * drift * t**2 / seconds)
     phase = 2 * np.pi * PINION * theta
-    x = np.cos(phase) + 0.5 * np.cos(2 * phase + 0.4) + 0.25 * np.cos(3 * phase + 1.1)
+    x = sum(a * np.cos((h + 1) * phase + (0.0, 0.4, 1.1, 0.7, 0.2, 1.5)[h % 6])
+            for h, a in enumerate(harmonics))
+    carrier = 1 + int(np.argmax(harmonics))
     position = (theta * PINION) % PINION                       # in teeth, tooth k centred on k - 1
     tooth = np.floor(position + 0.5).astype(int) % PINION
     within = position - np.round(position)                     # −0.5 … 0.5 around the tooth centre
-    x += 0.25 * pitch[tooth] * np.exp(-(within / 0.25) ** 2) * np.sin(phase + 0.3)
+    x += pattern * pitch[tooth] * np.exp(-(within / 0.25) ** 2) * np.sin(carrier * phase + 0.3)
     x += 0.3 * np.cos(2 * np.pi * theta * PINION / GEAR * 3 + 0.2)
     if day >= onset_day:
         depth = 5.0 * (1 + 0.5 * (day - onset_day))

@@ -14,7 +14,7 @@ import sqlalchemy as sa
 
 from gearwatch.cli.main import main
 from gearwatch.floor.campaign import Campaign, ChannelConfig, RecordData, RigConfig
-from gearwatch.floor.results import AnalysisParameters
+from gearwatch.floor.results import AnalysisParameters, RecordAnalysis
 from gearwatch.usecases.analyze import analyze_file, analyze_record
 from gearwatch.usecases.replay import replay_campaign
 from ingest.manifest import load_manifest
@@ -326,13 +326,49 @@ def test_the_real_spectraquest_records_get_a_tachless_angle_and_one_frame() -> N
     assert frame["kind"] == "campaign" and frame["pinion"]["margin"] > 0.3, frame
 
 
-def test_without_a_speed_hint_the_angle_is_kept_but_the_tooth_numbers_are_refused() -> None:
+def _without_hint(record: dict[str, np.ndarray]) -> RecordAnalysis:
     rig = RigConfig("r", fx.PINION, fx.GEAR)  # no nominal_pinion_rpm
     campaign = Campaign("c", "", rig, fx.FS, None, (ChannelConfig("acc", "accelerometer"),))
-    analysis = analyze_record(RecordData({"acc": fx.record(2)["acc"]}, fx.FS), campaign,
-                              input_sha256="d", tooth_frames={})
+    return analyze_record(RecordData({"acc": record["acc"]}, fx.FS), campaign,
+                          input_sha256="d", tooth_frames={})
+
+
+def test_without_a_speed_hint_the_revolutions_confirm_the_spectrum_speed() -> None:
+    analysis = _without_hint(fx.record(2))
     channel = analysis.channels[0]
-    assert channel.tooth_frame["kind"] in ("refused", "none")
+    assert analysis.quality.angle_source == "mesh_phase"
+    assert analysis.quality.tachless is not None
+    assert analysis.quality.tachless["speed_from"] == "spectrum"
+    assert abs(analysis.speed_rpm / fx.RPM - 1) < 0.03
+    assert channel.tooth_frame["kind"] == "campaign", channel.tooth_frame
+    assert channel.tooth_frame["period_check"]["confirmed"] is True
+    assert len(channel.teeth) == fx.PINION
+
+
+def test_a_spectrum_speed_twice_the_true_one_is_corrected_by_its_revolutions() -> None:
+    # no odd mesh harmonic: the line family of twice the speed explains the spectrum better
+    # (the premise is checked), but then consecutive "revolutions" are the two halves of a true
+    # one and differ: the speed is halved and confirmed
+    from dsp.meshspectrum import estimate_pair_speed
+
+    record = fx.record(2, harmonics=(0.0, 1.0, 0.0, 0.6, 0.0, 0.4))
+    spectrum_hz = estimate_pair_speed(record["acc"].astype(float), fx.FS, fx.PINION, fx.GEAR,
+                                      min_shaft_hz=10 / 3.0)
+    assert abs(60 * spectrum_hz / fx.RPM - 2) < 0.06
+    analysis = _without_hint(record)
+    assert analysis.quality.tachless is not None
+    assert analysis.quality.tachless["speed_corrected_by"] == "1/2"
+    assert abs(analysis.speed_rpm / fx.RPM - 1) < 0.03
+    frame = analysis.channels[0].tooth_frame
+    assert frame["kind"] == "campaign" and frame["period_check"]["confirmed"] is True, frame
+
+
+def test_without_a_speed_hint_and_without_a_tooth_pattern_the_tooth_numbers_are_refused() -> None:
+    # nothing tooth-specific: the revolutions cannot show that they are true ones
+    analysis = _without_hint(fx.record(2, pattern=0.0))
+    channel = analysis.channels[0]
+    assert channel.tooth_frame["kind"] == "refused"
+    assert "not confirmed by the revolutions" in channel.tooth_frame["reason"]
+    assert "too little tooth-specific vibration" in channel.tooth_frame["reason"]
     assert not channel.teeth and channel.metrics["raw_rms"] > 0
-    if analysis.quality.angle_source == "mesh_phase":
-        assert "nominal_pinion_rpm" in analysis.quality.per_tooth
+    assert channel.tooth_frame["period_check"]["confirmed"] is False

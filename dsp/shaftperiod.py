@@ -1,0 +1,324 @@
+"""Is a revolution a revolution? A check of a shaft period found without a tachometer.
+
+A mesh-phase angle (:mod:`dsp.tachless`) counts ``teeth`` mesh periods per revolution, but the
+speed it starts from can be a wrong member of the line family when no speed hint is given: a
+record's strongest lines may be the 2nd or 5th mesh harmonic, and the angle then turns ``r``
+times too fast or too slow (``r`` a ratio of small integers). The synchronous average cannot
+tell: it is as smooth either way. The *revolutions* can. A shaft's vibration repeats once per
+true revolution, so with candidate revolutions of true length ``T·q/p`` (in lowest terms):
+
+* ``p > 1`` (too fast): consecutive candidate revolutions are different pieces of the true one;
+  the averages of the revolutions with index ``≡ j (mod m)``, for a prime ``m`` dividing ``p``,
+  differ from each other by far more than noise (:func:`residue_z`);
+* ``q > 1`` (too slow): a candidate revolution holds ``q`` true ones, so its average repeats
+  ``q`` times: its orders not divisible by a prime ``m`` dividing ``q`` hold only noise
+  (:func:`unfolded_z`).
+
+Both are tested against the noise measured in the revolutions themselves: the scatter of every
+order's complex amplitude from revolution to revolution (:class:`PeriodSums`), so a coloured
+noise, a load that wanders within the record or a strong mesh line do not bias them. Mesh
+harmonics and order 0 are left out (they are the same for every tooth and do not depend on
+which revolution is which).
+
+The other wheel interferes with the first test: its own pattern repeats every ``Z_other / g``
+revolutions of this one (``g = gcd`` of the tooth counts), so for a prime ``m`` dividing that
+hunting number the residue classes differ on a right angle too. Such a modulus is tested on the
+other wheel's revolutions instead (whose hunting number it cannot divide, the two being
+coprime): :func:`check_shaft_period`.
+
+Pure: arrays in, numbers and a frozen dataclass out.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "MAX_RESIDUE_Z",
+    "MIN_CONTENT_Z",
+    "MODULI",
+    "PeriodCheck",
+    "PeriodSums",
+    "PeriodSumsAccumulator",
+    "check_shaft_period",
+    "residue_z",
+    "unfolded_z",
+]
+
+FloatArray = NDArray[np.float64]
+ComplexArray = NDArray[np.complex128]
+
+MODULI = (2, 3, 5, 7, 11, 13)
+"""Primes tested: a mesh-phase angle taken from harmonic ``h`` of a line read as harmonic
+``h'`` turns ``h/h'`` times too fast, ``h, h' ≤ 16``."""
+MIN_CONTENT_Z = 6.0
+"""The average's orders not divisible by each tested prime must stand this many standard errors
+above the noise (else the revolution may be several true ones, or there is too little
+tooth-specific content to tell)."""
+MAX_RESIDUE_Z = 3.5
+"""…and the residue-class averages of every tested prime may differ by at most this many
+standard errors more than noise makes them (else the revolution is a piece of a true one)."""
+
+
+@dataclass(frozen=True)
+class PeriodSums:
+    """What the check needs of one shaft's revolutions (``samples_per_rev`` samples each).
+
+    ``residue_sums[m][j]`` is the sum of the revolutions whose index in the record (counted from
+    the first revolution, rejected ones included) is ``≡ j (mod m)``; ``order_power`` is
+    ``Σ_r |rfft(rev_r)|²``."""
+
+    total: FloatArray
+    count: int
+    order_power: FloatArray
+    residue_sums: dict[int, FloatArray] = field(default_factory=dict)
+    residue_counts: dict[int, NDArray[np.int64]] = field(default_factory=dict)
+    indices: NDArray[np.int64] = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    """The record index of every revolution summed, in the order added."""
+
+
+class PeriodSumsAccumulator:
+    """Collects :class:`PeriodSums` block by block, revolutions given with their record index."""
+
+    def __init__(self, samples_per_rev: int, moduli: tuple[int, ...] = MODULI) -> None:
+        self.samples_per_rev = samples_per_rev
+        self.moduli = moduli
+        self.total = np.zeros(samples_per_rev)
+        self.count = 0
+        self.order_power = np.zeros(samples_per_rev // 2 + 1)
+        self.sums = {m: np.zeros((m, samples_per_rev)) for m in moduli}
+        self.counts = {m: np.zeros(m, dtype=np.int64) for m in moduli}
+        self.indices: list[NDArray[np.int64]] = []
+
+    def add(self, revolutions: ArrayLike, indices: ArrayLike) -> None:
+        """Add ``revolutions`` (rows), revolution ``i`` being number ``indices[i]`` in the record."""
+        revs = np.asarray(revolutions, dtype=np.float64).reshape(-1, self.samples_per_rev)
+        index = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if revs.shape[0] == 0:
+            return
+        self.total += revs.sum(axis=0)
+        self.count += revs.shape[0]
+        self.indices.append(index.copy())
+        self.order_power += np.sum(np.abs(np.fft.rfft(revs, axis=1)) ** 2, axis=0)
+        for m in self.moduli:
+            residue = index % m
+            for j in range(m):
+                chosen = residue == j
+                if chosen.any():
+                    self.sums[m][j] += revs[chosen].sum(axis=0)
+                    self.counts[m][j] += int(chosen.sum())
+
+    def result(self) -> PeriodSums:
+        return PeriodSums(self.total.copy(), self.count, self.order_power.copy(),
+                          {m: s.copy() for m, s in self.sums.items()},
+                          {m: c.copy() for m, c in self.counts.items()},
+                          np.concatenate(self.indices) if self.indices else np.empty(0, dtype=np.int64))
+
+
+def _orders(sums: PeriodSums, teeth: int) -> tuple[ComplexArray, FloatArray, NDArray[np.bool_]]:
+    """The average's spectrum, each order's per-revolution noise variance, the tested orders."""
+    n = sums.total.size
+    average = np.fft.rfft(sums.total / sums.count)
+    variance = (sums.order_power - sums.count * np.abs(average) ** 2) / max(sums.count - 1, 1)
+    k = np.arange(average.size)
+    tested = (k > 0) & (k % teeth != 0) & (2 * k < n) & (variance > 0)
+    return average, np.maximum(variance, 0.0), tested
+
+
+def unfolded_z(sums: PeriodSums, teeth: int, m: int) -> float:
+    """How far the average's orders not divisible by ``m`` stand above their noise (standard
+    errors): small when a revolution holds ``m`` true ones (its average repeats ``m`` times).
+
+    Examples
+    --------
+    A pattern of orders 3 and 7 per true revolution, read once on true revolutions and once on
+    "revolutions" twice as long (an angle turning at half the speed):
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(1)
+    >>> n, teeth = 64, 8
+    >>> def sums(turns_per_rev):
+    ...     theta = np.arange(80 * n) / n * turns_per_rev
+    ...     x = np.cos(2 * np.pi * 3 * theta) + np.cos(2 * np.pi * 7 * theta + 1)
+    ...     acc = PeriodSumsAccumulator(n)
+    ...     acc.add((x + rng.standard_normal(x.size)).reshape(80, n), np.arange(80))
+    ...     return acc.result()
+    >>> bool(unfolded_z(sums(1), teeth, 2) > 50), bool(unfolded_z(sums(2), teeth, 2) < 3)
+    (True, True)
+    """
+    if sums.count < 2:
+        return math.nan
+    average, variance, tested = _orders(sums, teeth)
+    k = np.arange(average.size)
+    chosen = tested & (k % m != 0)
+    noise = variance[chosen] / sums.count
+    if noise.size == 0 or not np.any(noise > 0):
+        return math.nan
+    excess = np.sum(np.abs(average[chosen]) ** 2 - noise)
+    return float(excess / math.sqrt(np.sum(noise**2)))
+
+
+def _other_wheel_rows(other_average: ArrayLike, samples_per_rev: int) -> FloatArray:
+    """The other wheel's pattern as it sits in this wheel's revolution ``r``, for every
+    ``r mod period`` (rows). Both grids share one angle step and start at the same mark, so
+    sample ``s`` of revolution ``r`` is sample ``(r·N + s) mod N_other`` of the pattern."""
+    pattern = np.asarray(other_average, dtype=np.float64)
+    n_other = pattern.size
+    period = n_other // math.gcd(samples_per_rev, n_other)  # revolutions until the offsets repeat
+    offsets = (np.arange(period) * samples_per_rev) % n_other
+    return np.asarray(pattern[(offsets[:, None] + np.arange(samples_per_rev)[None, :]) % n_other],
+                      dtype=np.float64)
+
+
+def other_wheel_content(other_average: ArrayLike, samples_per_rev: int, indices: ArrayLike,
+                        classes: ArrayLike, count: int) -> FloatArray:
+    """The other wheel's synchronous pattern as it sits in the mean of each class of this
+    wheel's revolutions: ``(count, samples_per_rev)``; class ``c`` holds the revolutions
+    ``indices[classes == c]`` (see :func:`_other_wheel_rows`)."""
+    rows = _other_wheel_rows(other_average, samples_per_rev)
+    index = np.asarray(indices, dtype=np.int64)
+    label = np.asarray(classes, dtype=np.int64)
+    weights = np.zeros((count, rows.shape[0]))
+    np.add.at(weights, (label, index % rows.shape[0]), 1.0)
+    weights /= np.maximum(weights.sum(axis=1, keepdims=True), 1.0)
+    return np.asarray(weights @ rows, dtype=np.float64)
+
+
+def _other_wheel_variance(other_average: ArrayLike, samples_per_rev: int, indices: ArrayLike) -> FloatArray:
+    """Per order, the variance from revolution to revolution that the other wheel's pattern
+    alone gives this wheel's revolutions ``indices`` (part of the measured scatter, not noise)."""
+    rows = _other_wheel_rows(other_average, samples_per_rev)
+    spectra = np.fft.rfft(rows, axis=1)
+    counts = np.bincount(np.asarray(indices, dtype=np.int64) % rows.shape[0], minlength=rows.shape[0])
+    weights = counts / max(int(counts.sum()), 1)
+    mean = weights @ spectra
+    return np.asarray(weights @ np.abs(spectra) ** 2 - np.abs(mean) ** 2, dtype=np.float64)
+
+
+def residue_z(sums: PeriodSums, teeth: int, m: int, other_average: ArrayLike | None = None) -> float:
+    """How much more the averages of the revolutions ``≡ j (mod m)`` differ than noise makes
+    them (standard errors, ~N(0, 1) for true revolutions): large when a revolution is a piece of
+    a true one. NaN when some class is empty or ``m`` was not accumulated.
+
+    ``other_average``, the other wheel's synchronous average on the shared angle grid: its
+    pattern is taken out of every class first (:func:`other_wheel_content`), and the scatter it
+    gives the revolutions out of the noise. With a few revolutions per class the other wheel's
+    pattern does not cancel within a class (nor at all when ``m`` divides its hunting number),
+    and a right angle would look wrong."""
+    if m not in sums.residue_sums or sums.count < 2 * m:
+        return math.nan
+    counts = sums.residue_counts[m]
+    if np.any(counts == 0):
+        return math.nan
+    average, variance, tested = _orders(sums, teeth)
+    means = sums.residue_sums[m] / counts[:, None]
+    if other_average is not None and sums.indices.size == sums.count:
+        n = sums.total.size
+        means = means - other_wheel_content(other_average, n, sums.indices, sums.indices % m, m)
+        whole = other_wheel_content(other_average, n, sums.indices, np.zeros_like(sums.indices), 1)[0]
+        average = average - np.fft.rfft(whole)
+        scale = sums.count / max(sums.count - 1, 1)
+        variance = np.maximum(variance - scale * _other_wheel_variance(other_average, n, sums.indices),
+                              0.0)
+        tested = tested & (variance > 0)
+    spectra = np.fft.rfft(means, axis=1)
+    q = float(np.sum(counts[:, None] * np.abs(spectra[:, tested] - average[tested]) ** 2))
+    expected = (m - 1) * float(np.sum(variance[tested]))
+    spread = math.sqrt((m - 1) * float(np.sum(variance[tested] ** 2)))
+    return (q - expected) / spread if spread > 0 else math.nan
+
+
+@dataclass(frozen=True)
+class PeriodCheck:
+    """The verdict of :func:`check_shaft_period`: ``refusal`` is ``""`` when the revolutions are
+    true ones, else the reason; the z-scores per prime for the record's quality report."""
+
+    refusal: str
+    unfolded: dict[int, float]
+    residue: dict[int, float]
+    residue_wheel: dict[int, str]
+    min_content_z: float = MIN_CONTENT_Z
+    max_residue_z: float = MAX_RESIDUE_Z
+
+    @property
+    def speed_factor(self) -> Fraction | None:
+        """The likeliest single correction of the angle's speed, as the revolutions say: ``1/m``
+        for the prime whose residue classes differ most (too fast by ``m``), else ``m`` for the
+        prime whose orders hold least while others hold content (too slow by ``m``). ``None``
+        when the revolutions are true ones or say nothing (no content at all). One prime at a
+        time: a 2.5× speed shows both 5 (too fast) and 2 (too slow), and a weak second flag
+        can be noise.
+
+        Examples
+        --------
+        >>> PeriodCheck("x", {2: 0.3, 3: 40.0, 5: 38.0}, {2: 0.1, 3: 0.2, 5: 60.0}, {}).speed_factor
+        Fraction(1, 5)
+        >>> PeriodCheck("x", {2: 0.3, 3: 40.0, 5: 38.0}, {2: 0.1, 3: 0.2, 5: 1.0}, {}).speed_factor
+        Fraction(2, 1)
+        """
+        if not self.refusal:
+            return None
+        fast = {m: z for m, z in self.residue.items() if z > self.max_residue_z}
+        if fast:
+            return Fraction(1, max(fast, key=lambda m: fast[m]))
+        content = {m: z for m, z in self.unfolded.items() if math.isfinite(z)}
+        if not content or max(content.values()) < self.min_content_z:
+            return None
+        slow = {m: z for m, z in content.items() if z < self.min_content_z}
+        return Fraction(min(slow, key=lambda m: slow[m])) if slow else None
+
+
+def check_shaft_period(
+    pinion: PeriodSums,
+    gear: PeriodSums | None,
+    pinion_teeth: int,
+    gear_teeth: int,
+    moduli: tuple[int, ...] = MODULI,
+    *,
+    min_content_z: float = MIN_CONTENT_Z,
+    max_residue_z: float = MAX_RESIDUE_Z,
+) -> PeriodCheck:
+    """Are the pinion revolutions (and the gear's, cut from them) true revolutions?
+
+    For every prime ``m`` of ``moduli``: the pinion average's orders not divisible by ``m`` must
+    stand ``min_content_z`` above noise (:func:`unfolded_z`), and the residue classes mod ``m``
+    may differ by at most ``max_residue_z`` (:func:`residue_z`), on the pinion's revolutions, or
+    on the gear's when ``m`` divides the pinion's hunting number ``gear_teeth / g``. A prime too
+    large for the record's revolutions (a class left empty) is skipped above 5 and refuses
+    below.
+    """
+    common = math.gcd(pinion_teeth, gear_teeth)
+    unfolded: dict[int, float] = {}
+    residue: dict[int, float] = {}
+    wheel: dict[int, str] = {}
+    problems: list[str] = []
+    for m in moduli:
+        unfolded[m] = unfolded_z(pinion, pinion_teeth, m)
+        gear_average = None if gear is None or gear.count == 0 else gear.total / gear.count
+        pinion_average = pinion.total / max(pinion.count, 1)
+        wheel[m], residue[m] = "pinion", residue_z(pinion, pinion_teeth, m, gear_average)
+        if gear is not None and not (pinion_teeth // common) % m == 0:
+            on_gear = residue_z(gear, gear_teeth, m, pinion_average)
+            if on_gear > residue[m] or math.isnan(residue[m]):
+                wheel[m], residue[m] = "gear", on_gear
+        if not unfolded[m] >= min_content_z:
+            problems.append(
+                f"the average's orders off multiples of {m} stand only {unfolded[m]:.1f} standard "
+                f"errors above noise (the angle may turn {m}× too slowly, or the record holds too "
+                "little tooth-specific vibration to tell)"
+            )
+        if residue[m] > max_residue_z:
+            problems.append(
+                f"the {wheel[m]}'s revolutions differ with their number mod {m} "
+                f"({residue[m]:.1f} standard errors): the angle turns too fast"
+            )
+        elif math.isnan(residue[m]) and m <= 5:
+            problems.append(f"too few {wheel[m]} revolutions to check the period against {m}")
+    refusal = ("the shaft speed from the spectrum is not confirmed by the revolutions: "
+               + "; ".join(problems)) if problems else ""
+    return PeriodCheck(refusal, unfolded, residue, wheel, min_content_z, max_residue_z)

@@ -1,0 +1,126 @@
+"""Is a revolution a revolution (:mod:`dsp.shaftperiod`): true revolutions pass, an angle that
+turns a whole ratio too fast or too slow is refused, the other wheel does not fool the test."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from dsp.shaftperiod import (
+    MAX_RESIDUE_Z,
+    MIN_CONTENT_Z,
+    PeriodSumsAccumulator,
+    check_shaft_period,
+    residue_z,
+    unfolded_z,
+)
+from gearwatch.usecases.angle_averages import gear_revolutions_from_pinion_grid
+
+SPM = 16
+
+
+def revolutions(
+    pinion_teeth: int, gear_teeth: int, speed_factor: float, *, revs: int = 90, noise: float = 0.3,
+    pinion_level: float = 0.3, gear_level: float = 0.3, seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pinion and gear "revolutions" of an angle that turns ``speed_factor`` × the true one.
+
+    The vibration is a function of the true pinion angle θ (revolutions): mesh harmonics, a
+    pinion tooth pattern (random orders), the gear's tooth pattern at θ·Z1/Z2, white noise. The
+    candidate grid has Z1·SPM samples per candidate revolution, i.e. θ advances 1/speed_factor
+    per candidate revolution; the gear revolutions are cut from it as the pipeline does. Orders
+    stay below 1.5 mesh orders, so that a slow angle's grid (``speed_factor`` < 1) does not
+    alias them (the pipeline's resampler filters them)."""
+    rng = np.random.default_rng(seed)
+    n = pinion_teeth * SPM
+    theta = np.arange(revs * n) / n / speed_factor
+    gear_theta = theta * pinion_teeth / gear_teeth
+    x = np.cos(2 * np.pi * pinion_teeth * theta)
+    for k in rng.choice(np.arange(1, 3 * pinion_teeth // 2), 20, replace=False):
+        if k % pinion_teeth:
+            x += pinion_level / math.sqrt(20) * np.cos(2 * np.pi * k * theta + rng.uniform(0, 2 * np.pi))
+    for k in rng.choice(np.arange(1, 3 * gear_teeth // 2), 20, replace=False):
+        if k % gear_teeth:
+            x += gear_level / math.sqrt(20) * np.cos(2 * np.pi * k * gear_theta + rng.uniform(0, 2 * np.pi))
+    x += noise * rng.standard_normal(x.size)
+    pinion = x.reshape(revs, n)
+    return pinion, gear_revolutions_from_pinion_grid(pinion, gear_teeth * SPM)
+
+
+def check(pinion_teeth: int, gear_teeth: int, speed_factor: float, **kw: float):  # type: ignore[no-untyped-def]
+    pinion, gear = revolutions(pinion_teeth, gear_teeth, speed_factor, **kw)  # type: ignore[arg-type]
+    a = PeriodSumsAccumulator(pinion.shape[1])
+    a.add(pinion, np.arange(pinion.shape[0]))
+    b = PeriodSumsAccumulator(gear.shape[1])
+    b.add(gear, np.arange(gear.shape[0]))
+    return check_shaft_period(a.result(), b.result(), pinion_teeth, gear_teeth)
+
+
+@pytest.mark.parametrize(("pinion_teeth", "gear_teeth"), [(20, 21), (17, 43), (21, 42), (30, 45), (25, 20)])
+def test_true_revolutions_pass(pinion_teeth: int, gear_teeth: int) -> None:
+    # 21/42 and 30/45: the gear's pattern repeats every 2 pinion revolutions, so the pinion's
+    # residue classes mod 2 (and 3) differ on a right angle: it must be taken out or tested on
+    # the gear, or every such pair would be refused
+    result = check(pinion_teeth, gear_teeth, 1.0)
+    assert result.refusal == "", result
+    assert max(result.residue.values()) < MAX_RESIDUE_Z
+
+
+@pytest.mark.parametrize(("pinion_teeth", "gear_teeth", "factor", "prime"), [
+    (20, 21, 2.0, 2), (20, 21, 3.0, 3), (17, 43, 2.5, 5), (21, 42, 2.0, 2), (30, 45, 1.5, 3),
+])
+def test_an_angle_that_turns_too_fast_is_refused(
+    pinion_teeth: int, gear_teeth: int, factor: float, prime: int
+) -> None:
+    result = check(pinion_teeth, gear_teeth, factor)
+    assert result.residue[prime] > MAX_RESIDUE_Z, result
+    assert f"mod {prime}" in result.refusal
+
+
+@pytest.mark.parametrize(("factor", "prime"), [(0.5, 2), (1 / 3, 3), (0.25, 2)])
+def test_an_angle_that_turns_too_slowly_is_refused(factor: float, prime: int) -> None:
+    result = check(20, 21, factor, revs=180)
+    assert result.unfolded[prime] < MIN_CONTENT_Z, result
+    assert f"off multiples of {prime}" in result.refusal
+
+
+def test_noise_alone_cannot_confirm_anything() -> None:
+    result = check(20, 21, 1.0, pinion_level=0.0, gear_level=0.0)
+    assert "too little tooth-specific vibration" in result.refusal
+
+
+def test_residue_z_is_a_standard_score_on_true_revolutions() -> None:
+    # 60 records of noise and patterns: the z of each prime scatters about 0 with a spread
+    # near 1 (what the 3.5 threshold assumes), not a spread that grows with the patterns
+    values = []
+    for seed in range(60):
+        pinion, gear = revolutions(23, 31, 1.0, seed=seed, revs=70)
+        a = PeriodSumsAccumulator(pinion.shape[1])
+        a.add(pinion, np.arange(pinion.shape[0]))
+        values += [residue_z(a.result(), 23, m, gear.mean(axis=0)) for m in (2, 3, 5)]
+    assert abs(float(np.mean(values))) < 0.4
+    assert 0.6 < float(np.std(values)) < 1.5
+
+
+def test_the_other_wheel_is_taken_out_of_the_classes() -> None:
+    # 21/42: the gear's pattern repeats every 2 pinion revolutions, so the even and the odd
+    # revolutions of a right angle hold different halves of it: without the gear's part
+    # removed they differ far beyond noise
+    pinion, gear = revolutions(21, 42, 1.0, gear_level=1.0, seed=3)
+    a = PeriodSumsAccumulator(pinion.shape[1])
+    a.add(pinion, np.arange(pinion.shape[0]))
+    sums = a.result()
+    assert residue_z(sums, 21, 2) > 10 * MAX_RESIDUE_Z
+    assert residue_z(sums, 21, 2, gear.mean(axis=0)) < MAX_RESIDUE_Z
+
+
+def test_rejected_revolutions_keep_their_record_numbers() -> None:
+    # every third revolution dropped: the classes still follow the record's numbering
+    pinion, _gear = revolutions(20, 21, 2.0)
+    kept = np.flatnonzero(np.arange(pinion.shape[0]) % 3 != 1)
+    a = PeriodSumsAccumulator(pinion.shape[1])
+    a.add(pinion[kept], kept)
+    assert residue_z(a.result(), 20, 2) > MAX_RESIDUE_Z
+    assert unfolded_z(a.result(), 20, 2) > MIN_CONTENT_Z
