@@ -38,14 +38,16 @@ Scored (the tach is used only to score):
   campaigns each chain's first alarm names the spalled tooth.
 
 Study switches: ``--no-guard`` (with ``--no-hint``) keeps the tooth frame of a day whose speed
-came from the spectrum, and ``GW_SPEED_STUDY=1`` adds to each row the days' spectrum speed against
+came from the spectrum whatever its revolutions say (:func:`dsp.shaftperiod.check_shaft_period`
+always passes), and ``GW_SPEED_STUDY=1`` adds to each row the days' spectrum speed against
 the tach's and the line families' scores (docs/tachless.md, "Can the spectrum's speed be
 trusted").
 
 Seeds 1000–1009 were used while choosing the refusal thresholds of :mod:`dsp.toothframe`
 (development); the table reports them apart from the held-out seeds 2000–2019. Later sessions
 spent further ranges once each (3000–9219, docs/tachless.md); 1000–1019 were dumped to choose the
-energy-pattern confirmation and 9300–9319 held it out (seventh session).
+energy-pattern confirmation and 9300–9319 held it out (seventh session). The speed check by the
+revolutions (``--no-hint``) was chosen on 1000–1019 and held out on 9810–9839 (2026-11-28).
 """
 
 from __future__ import annotations
@@ -538,7 +540,8 @@ def main() -> int:
     parser.add_argument("--json", default=None)
     parser.add_argument("--no-hint", action="store_true", help="no nominal speed: find it in the spectrum")
     parser.add_argument("--no-guard", action="store_true",
-                        help="with --no-hint: keep the tooth frame of a day whose speed came from the spectrum (study)")
+                        help="with --no-hint: keep the tooth frame of a day whose speed came from the spectrum, "
+                             "unchecked by its revolutions (study)")
     parser.add_argument("--same-start", action="store_true",
                         help="do not crop a random 0–2 pinion revolutions off each record's start "
                              "(the simulators start every day at the same shaft angle)")
