@@ -272,6 +272,25 @@ class PeriodCheck:
         slow = {m: z for m, z in content.items() if z < self.min_content_z}
         return Fraction(min(slow, key=lambda m: slow[m])) if slow else None
 
+    @property
+    def speed_factors(self) -> list[Fraction]:
+        """The corrections to try, in order: :attr:`speed_factor` first, then the other
+        ratios its prime allows — a speed too fast by ``m`` is ``k/m`` times the angle's for some
+        ``k`` coprime to ``m`` (a 1.5× speed shows 3; ÷3 can leave too few revolutions to take an
+        angle, ×2/3 does not), one too slow by ``m`` is ``m/k`` times it.
+
+        Examples
+        --------
+        >>> PeriodCheck("x", {2: 40.0, 3: 40.0, 5: 38.0}, {2: 0.1, 3: 60.0, 5: 1.0}, {}).speed_factors
+        [Fraction(1, 3), Fraction(2, 3)]
+        """
+        first = self.speed_factor
+        if first is None:
+            return []
+        m = first.denominator if first < 1 else first.numerator
+        ratios = [Fraction(k, m) for k in range(1, m) if math.gcd(k, m) == 1]
+        return ratios if first < 1 else [1 / r for r in ratios]
+
 
 def check_shaft_period(
     pinion: PeriodSums,

@@ -101,9 +101,13 @@ def record_shaft_angle(
         signals, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
         nominal_pinion_rpm=rig.nominal_pinion_rpm,
     )
+    args = (signals, scans, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params, block_samples)
     if rig.nominal_pinion_rpm is None:
-        mesh = _checked_spectrum_speed(mesh, signals, scans, sample_rate_hz, rig.pinion_teeth,
-                                       rig.gear_teeth, params, block_samples)
+        mesh = _checked_spectrum_speed(mesh, *args)
+    elif isinstance(mesh, str):
+        mesh = _without_the_hint(mesh, *args)
+    else:
+        mesh = _hint_checked(mesh, *args)
     if isinstance(mesh, str):
         return f"no shaft angle: {tach_failure}; mesh phase: {mesh}"
     return ShaftAngle(
@@ -164,6 +168,53 @@ def _checked_spectrum_speed(
     return mesh
 
 
+def _without_the_hint(
+    refusal: str,
+    signals: Mapping[str, np.ndarray],
+    scans: Mapping[str, ScannedSignal],
+    sample_rate_hz: float,
+    pinion_teeth: int,
+    gear_teeth: int,
+    params: AnalysisParameters,
+    block_samples: int,
+) -> MeshPhaseAngle | str:
+    """The speed hint gave no angle (the rig ran that day far from ``nominal_pinion_rpm``): the
+    spectrum's speed, checked by the revolutions as without a hint; ``summary["hint_failed"]``
+    keeps why the hint failed. Nothing either: the hint's refusal."""
+    args = (signals, scans, sample_rate_hz, pinion_teeth, gear_teeth, params, block_samples)
+    mesh = _checked_spectrum_speed(
+        mesh_phase_angle(signals, sample_rate_hz, pinion_teeth, gear_teeth, params), *args)
+    if isinstance(mesh, str):
+        return refusal
+    return MeshPhaseAngle(mesh.tach, {**mesh.summary, "hint_failed": refusal})
+
+
+def _hint_checked(
+    mesh: MeshPhaseAngle,
+    signals: Mapping[str, np.ndarray],
+    scans: Mapping[str, ScannedSignal],
+    sample_rate_hz: float,
+    pinion_teeth: int,
+    gear_teeth: int,
+    params: AnalysisParameters,
+    block_samples: int,
+) -> MeshPhaseAngle:
+    """An angle found near ``nominal_pinion_rpm``, replaced only when its revolutions show it a
+    whole ratio off *and* the corrected angle's revolutions are confirmed.
+
+    Within ±20 % of a right hint the angle is right; a hint that is wrong that day by more (the
+    rig run at another speed) lets the search lock on another mesh harmonic, e.g. 1.5× or 2× the
+    true speed, and every tooth number would be wrong. An unconfirmed correction keeps the
+    hint's angle: a right angle's classes can differ a little through content that repeats only
+    once per hunting period (docs/tachless.md), and the hint is then trusted as before."""
+    args = (signals, scans, sample_rate_hz, pinion_teeth, gear_teeth, params, block_samples)
+    corrected, confirmed = _speed_corrected_by_revolutions(mesh, *args)
+    if not confirmed or corrected is mesh:
+        return mesh
+    return MeshPhaseAngle(corrected.tach, {**corrected.summary, "speed_from": "spectrum",
+                                           "hint_overruled": True})
+
+
 def _speed_corrected_by_revolutions(
     mesh: MeshPhaseAngle,
     signals: Mapping[str, np.ndarray],
@@ -185,7 +236,9 @@ def _speed_corrected_by_revolutions(
     revolutions say which (:attr:`dsp.shaftperiod.PeriodCheck.speed_factor`: residue classes
     that differ mean too fast, orders without content too slow), one prime at a time, so the
     angle is taken again at the corrected speed, as if it had been the hint, up to
-    :data:`MAX_SPEED_CORRECTIONS` times (2.5× takes two: ÷5, then ×2). The per-channel check of
+    :data:`MAX_SPEED_CORRECTIONS` times (2.5× takes two: ÷5, then ×2); when ÷m gives no angle,
+    the other ratios the prime allows (:attr:`dsp.shaftperiod.PeriodCheck.speed_factors`: 1.5×
+    shows 3, and ÷3 leaves too few revolutions where ×2/3 does not). The per-channel check of
     the final angle still decides whether per-tooth numbers are given
     (:mod:`gearwatch.usecases.analyze`); ``summary["speed_corrected_by"]`` says what was
     done, ``summary["spectrum_speed_rpm"]`` what the spectrum gave and
@@ -204,9 +257,13 @@ def _speed_corrected_by_revolutions(
         factor = check.speed_factor
         if not check.refusal or factor is None or attempt == MAX_SPEED_CORRECTIONS:
             return mesh, not check.refusal
-        hint_rpm = float(mesh.tach.mean_rpm * factor)
-        corrected = mesh_phase_angle(signals, sample_rate_hz, pinion_teeth, gear_teeth, params,
-                                     nominal_pinion_rpm=hint_rpm)
+        corrected: MeshPhaseAngle | str = "no correction"
+        for factor in check.speed_factors:
+            hint_rpm = float(mesh.tach.mean_rpm * factor)
+            corrected = mesh_phase_angle(signals, sample_rate_hz, pinion_teeth, gear_teeth, params,
+                                         nominal_pinion_rpm=hint_rpm)
+            if not isinstance(corrected, str):
+                break
         if isinstance(corrected, str):
             return mesh, False
         total *= factor

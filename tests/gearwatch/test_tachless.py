@@ -372,3 +372,43 @@ def test_without_a_speed_hint_and_without_a_tooth_pattern_the_tooth_numbers_are_
     assert "too little tooth-specific vibration" in channel.tooth_frame["reason"]
     assert not channel.teeth and channel.metrics["raw_rms"] > 0
     assert channel.tooth_frame["period_check"]["confirmed"] is False
+
+
+@pytest.mark.parametrize(("hint_rpm", "corrected_by"), [(1300.0, "2/3"), (1500.0, "1/2"), (2500.0, "1/3")])
+def test_a_speed_hint_far_off_that_day_is_overruled_by_the_revolutions(hint_rpm: float, corrected_by: str) -> None:
+    # the rig ran at 900 rpm; within ±20 % of the hint the search found another mesh harmonic
+    # (1.5×, 2×, 3× the speed): every tooth number would be wrong. The revolutions show it, and
+    # the corrected angle's revolutions are confirmed.
+    rig = RigConfig("r", fx.PINION, fx.GEAR, nominal_pinion_rpm=hint_rpm)
+    campaign = Campaign("c", "", rig, fx.FS, None, (ChannelConfig("acc", "accelerometer"),))
+    analysis = analyze_record(RecordData({"acc": fx.record(2)["acc"]}, fx.FS), campaign,
+                              input_sha256="d", tooth_frames={})
+    assert analysis.quality.tachless is not None
+    assert analysis.quality.tachless["hint_overruled"] is True
+    assert analysis.quality.tachless["speed_corrected_by"] == corrected_by
+    assert abs(analysis.speed_rpm / fx.RPM - 1) < 0.03
+    frame = analysis.channels[0].tooth_frame
+    assert frame["kind"] == "campaign" and frame["period_check"]["confirmed"] is True
+
+
+def test_a_speed_hint_that_gives_no_angle_falls_back_to_the_checked_spectrum_speed() -> None:
+    rig = RigConfig("r", fx.PINION, fx.GEAR, nominal_pinion_rpm=450.0)  # half the day's speed
+    campaign = Campaign("c", "", rig, fx.FS, None, (ChannelConfig("acc", "accelerometer"),))
+    analysis = analyze_record(RecordData({"acc": fx.record(2)["acc"]}, fx.FS), campaign,
+                              input_sha256="d", tooth_frames={})
+    assert analysis.quality.tachless is not None
+    assert "at least 20 are required" in analysis.quality.tachless["hint_failed"]
+    assert abs(analysis.speed_rpm / fx.RPM - 1) < 0.03
+    assert analysis.channels[0].tooth_frame["period_check"]["confirmed"] is True
+
+
+def test_a_right_speed_hint_is_kept_and_not_checked_into_a_refusal() -> None:
+    # the hint's angle is only replaced by a confirmed correction: a right one stays as it was
+    rig = RigConfig("r", fx.PINION, fx.GEAR, nominal_pinion_rpm=fx.RPM)
+    campaign = Campaign("c", "", rig, fx.FS, None, (ChannelConfig("acc", "accelerometer"),))
+    analysis = analyze_record(RecordData({"acc": fx.record(2, pattern=0.0)["acc"]}, fx.FS), campaign,
+                              input_sha256="d", tooth_frames={})
+    assert analysis.quality.tachless is not None
+    assert analysis.quality.tachless["speed_from"] == "nominal_pinion_rpm"
+    assert "hint_overruled" not in analysis.quality.tachless
+    assert "period_check" not in analysis.channels[0].tooth_frame
