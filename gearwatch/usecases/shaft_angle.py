@@ -18,7 +18,7 @@ import numpy as np
 
 from dsp.robust import repair_spans
 from dsp.shaftperiod import MODULI as PERIOD_MODULI
-from dsp.shaftperiod import PeriodSums, check_shaft_period
+from dsp.shaftperiod import PeriodCheck, check_shaft_period
 from dsp.tach import (
     RecordOutOfTachLimits,
     TachAnalysis,
@@ -101,13 +101,14 @@ def record_shaft_angle(
         signals, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
         nominal_pinion_rpm=rig.nominal_pinion_rpm,
     )
-    args = (signals, scans, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params, block_samples)
+    record_signals = _MeshRecord(signals, scans, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth,
+                                 params, block_samples)
     if rig.nominal_pinion_rpm is None:
-        mesh = _checked_spectrum_speed(mesh, *args)
+        mesh = _checked_spectrum_speed(mesh, record_signals)
     elif isinstance(mesh, str):
-        mesh = _without_the_hint(mesh, *args)
+        mesh = _without_the_hint(mesh, record_signals)
     else:
-        mesh = _hint_checked(mesh, *args)
+        mesh = _hint_checked(mesh, record_signals)
     if isinstance(mesh, str):
         return f"no shaft angle: {tach_failure}; mesh phase: {mesh}"
     return ShaftAngle(
@@ -115,6 +116,39 @@ def record_shaft_angle(
         tach_failure=tach_failure if campaign.tachometer is not None else "",
         tachless=mesh.summary,
     )
+
+
+@dataclass(frozen=True)
+class _MeshRecord:
+    """A record's accelerometer channels as the mesh-phase angle reads them (defects bridged),
+    with what the speed check needs."""
+
+    signals: Mapping[str, np.ndarray]
+    scans: Mapping[str, ScannedSignal]
+    sample_rate_hz: float
+    pinion_teeth: int
+    gear_teeth: int
+    params: AnalysisParameters
+    block_samples: int
+
+    def mesh_phase_angle(self, hint_rpm: float | None) -> MeshPhaseAngle | str:
+        return mesh_phase_angle(self.signals, self.sample_rate_hz, self.pinion_teeth,
+                                self.gear_teeth, self.params, nominal_pinion_rpm=hint_rpm)
+
+    def period_check(self, mesh: MeshPhaseAngle) -> PeriodCheck:
+        """Are the angle's revolutions true ones (:func:`dsp.shaftperiod.check_shaft_period`),
+        on the channel that gave it. ``ValueError`` when the angle cannot resample it."""
+        scan = self.scans[str(mesh.summary["channel"])]
+        spm = self.params.samples_per_mesh
+        angle = angle_averages(
+            scan.samples, self.sample_rate_hz, mesh.tach.pulse_times_s, 1, self.pinion_teeth * spm,
+            self.gear_teeth * spm, 1.0, self.gear_teeth // math.gcd(self.pinion_teeth, self.gear_teeth),
+            self.block_samples, scan.defects, self.params.revolution_outlier_factor,
+            period_moduli=PERIOD_MODULI,
+        )
+        assert angle.pinion_period_sums is not None  # asked for by period_moduli
+        return check_shaft_period(angle.pinion_period_sums, angle.gear_period_sums,
+                                  self.pinion_teeth, self.gear_teeth)
 
 
 MAX_SPEED_CORRECTIONS = 3
@@ -128,32 +162,25 @@ for it leaves too few revolutions — these multiples of it are tried as hints
 
 def _checked_spectrum_speed(
     mesh: MeshPhaseAngle | str,
-    signals: Mapping[str, np.ndarray],
-    scans: Mapping[str, ScannedSignal],
-    sample_rate_hz: float,
-    pinion_teeth: int,
-    gear_teeth: int,
-    params: AnalysisParameters,
-    block_samples: int,
+    record: _MeshRecord,
 ) -> MeshPhaseAngle | str:
     """The mesh-phase angle of a rig without ``nominal_pinion_rpm``, its speed checked and
     corrected by its own revolutions (:func:`_speed_corrected_by_revolutions`). When the
     spectrum's speed gave no angle (``mesh`` is the refusal), :data:`RESCUE_SPEED_FACTORS` × that
     speed are tried and the first angle the revolutions confirm is kept; none: the refusal."""
-    args = (signals, scans, sample_rate_hz, pinion_teeth, gear_teeth, params, block_samples)
     if not isinstance(mesh, str):
-        return _speed_corrected_by_revolutions(mesh, *args)[0]
-    duration_s = min(x.size for x in signals.values()) / sample_rate_hz
-    for x in signals.values():
+        return _speed_corrected_by_revolutions(mesh, record)[0]
+    duration_s = min(x.size for x in record.signals.values()) / record.sample_rate_hz
+    for x in record.signals.values():
         try:
-            spectrum_hz = estimate_pair_speed(np.asarray(x, dtype=np.float64), sample_rate_hz,
-                                              pinion_teeth, gear_teeth, min_shaft_hz=10.0 / duration_s)
+            spectrum_hz = estimate_pair_speed(np.asarray(x, dtype=np.float64), record.sample_rate_hz,
+                                              record.pinion_teeth, record.gear_teeth,
+                                              min_shaft_hz=10.0 / duration_s)
         except TachlessError:
             continue
         for factor in RESCUE_SPEED_FACTORS:
             hint_rpm = 60.0 * spectrum_hz * factor
-            rescued = mesh_phase_angle(signals, sample_rate_hz, pinion_teeth, gear_teeth, params,
-                                       nominal_pinion_rpm=hint_rpm)
+            rescued = record.mesh_phase_angle(hint_rpm)
             if isinstance(rescued, str):
                 continue
             start = MeshPhaseAngle(rescued.tach, {
@@ -161,7 +188,7 @@ def _checked_spectrum_speed(
                 "spectrum_speed_rpm": round(60.0 * spectrum_hz, 3), "corrected_speed_hint_rpm": hint_rpm,
             })
             corrected, confirmed = _speed_corrected_by_revolutions(
-                start, *args, total=Fraction(factor), spectrum_rpm=60.0 * spectrum_hz)
+                start, record, total=Fraction(factor), spectrum_rpm=60.0 * spectrum_hz)
             if confirmed:
                 return corrected
         break  # the first channel with a spectrum speed decides, as in mesh_phase_angle
@@ -170,20 +197,12 @@ def _checked_spectrum_speed(
 
 def _without_the_hint(
     refusal: str,
-    signals: Mapping[str, np.ndarray],
-    scans: Mapping[str, ScannedSignal],
-    sample_rate_hz: float,
-    pinion_teeth: int,
-    gear_teeth: int,
-    params: AnalysisParameters,
-    block_samples: int,
+    record: _MeshRecord,
 ) -> MeshPhaseAngle | str:
     """The speed hint gave no angle (the rig ran that day far from ``nominal_pinion_rpm``): the
     spectrum's speed, checked by the revolutions as without a hint; ``summary["hint_failed"]``
     keeps why the hint failed. Nothing either: the hint's refusal."""
-    args = (signals, scans, sample_rate_hz, pinion_teeth, gear_teeth, params, block_samples)
-    mesh = _checked_spectrum_speed(
-        mesh_phase_angle(signals, sample_rate_hz, pinion_teeth, gear_teeth, params), *args)
+    mesh = _checked_spectrum_speed(record.mesh_phase_angle(None), record)
     if isinstance(mesh, str):
         return refusal
     return MeshPhaseAngle(mesh.tach, {**mesh.summary, "hint_failed": refusal})
@@ -191,13 +210,7 @@ def _without_the_hint(
 
 def _hint_checked(
     mesh: MeshPhaseAngle,
-    signals: Mapping[str, np.ndarray],
-    scans: Mapping[str, ScannedSignal],
-    sample_rate_hz: float,
-    pinion_teeth: int,
-    gear_teeth: int,
-    params: AnalysisParameters,
-    block_samples: int,
+    record: _MeshRecord,
 ) -> MeshPhaseAngle:
     """An angle found near ``nominal_pinion_rpm``, replaced only when its revolutions show it a
     whole ratio off *and* the corrected angle's revolutions are confirmed.
@@ -207,8 +220,7 @@ def _hint_checked(
     true speed, and every tooth number would be wrong. An unconfirmed correction keeps the
     hint's angle: a right angle's classes can differ a little through content that repeats only
     once per hunting period (docs/tachless.md), and the hint is then trusted as before."""
-    args = (signals, scans, sample_rate_hz, pinion_teeth, gear_teeth, params, block_samples)
-    corrected, confirmed = _speed_corrected_by_revolutions(mesh, *args)
+    corrected, confirmed = _speed_corrected_by_revolutions(mesh, record)
     if not confirmed or corrected is mesh:
         return mesh
     return MeshPhaseAngle(corrected.tach, {**corrected.summary, "speed_from": "spectrum",
@@ -217,13 +229,7 @@ def _hint_checked(
 
 def _speed_corrected_by_revolutions(
     mesh: MeshPhaseAngle,
-    signals: Mapping[str, np.ndarray],
-    scans: Mapping[str, ScannedSignal],
-    sample_rate_hz: float,
-    pinion_teeth: int,
-    gear_teeth: int,
-    params: AnalysisParameters,
-    block_samples: int,
+    record: _MeshRecord,
     *,
     total: Fraction = Fraction(1),
     spectrum_rpm: float | None = None,
@@ -247,21 +253,17 @@ def _speed_corrected_by_revolutions(
     if spectrum_rpm is None:
         spectrum_rpm = float(mesh.tach.mean_rpm)
     for attempt in range(MAX_SPEED_CORRECTIONS + 1):
-        name = str(mesh.summary["channel"])
         try:
-            pinion_sums, gear_sums = _period_sums(mesh, scans[name], sample_rate_hz, pinion_teeth,
-                                                  gear_teeth, params, block_samples)
+            check = record.period_check(mesh)
         except ValueError:  # the angle cannot resample the record: left to the chain's refusal
             return mesh, False
-        check = check_shaft_period(pinion_sums, gear_sums, pinion_teeth, gear_teeth)
         factor = check.speed_factor
         if not check.refusal or factor is None or attempt == MAX_SPEED_CORRECTIONS:
             return mesh, not check.refusal
         corrected: MeshPhaseAngle | str = "no correction"
         for factor in check.speed_factors:
             hint_rpm = float(mesh.tach.mean_rpm * factor)
-            corrected = mesh_phase_angle(signals, sample_rate_hz, pinion_teeth, gear_teeth, params,
-                                         nominal_pinion_rpm=hint_rpm)
+            corrected = record.mesh_phase_angle(hint_rpm)
             if not isinstance(corrected, str):
                 break
         if isinstance(corrected, str):
@@ -272,26 +274,6 @@ def _speed_corrected_by_revolutions(
             "spectrum_speed_rpm": round(spectrum_rpm, 3), "corrected_speed_hint_rpm": hint_rpm,
         })
     return mesh, False
-
-
-def _period_sums(
-    mesh: MeshPhaseAngle,
-    scan: ScannedSignal,
-    sample_rate_hz: float,
-    pinion_teeth: int,
-    gear_teeth: int,
-    params: AnalysisParameters,
-    block_samples: int,
-) -> tuple[PeriodSums, PeriodSums | None]:
-    """The pinion's and the gear's :class:`dsp.shaftperiod.PeriodSums` on the mesh-phase angle."""
-    angle = angle_averages(
-        scan.samples, sample_rate_hz, mesh.tach.pulse_times_s, 1,
-        pinion_teeth * params.samples_per_mesh, gear_teeth * params.samples_per_mesh, 1.0,
-        gear_teeth // math.gcd(pinion_teeth, gear_teeth), block_samples, scan.defects,
-        params.revolution_outlier_factor, period_moduli=PERIOD_MODULI,
-    )
-    assert angle.pinion_period_sums is not None  # asked for by period_moduli
-    return angle.pinion_period_sums, angle.gear_period_sums
 
 
 class _RefusedWithAWorkingTach(RecordRejected):
