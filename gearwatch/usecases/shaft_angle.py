@@ -97,12 +97,9 @@ def record_shaft_angle(
     # record's spectrum and no mesh line would stand out.
     signals = {name: repair_spans(scan.samples, spans) if (spans := scan.defects.spans()).size
                else scan.samples for name, scan in scans.items()}
-    mesh = mesh_phase_angle(
-        signals, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
-        nominal_pinion_rpm=rig.nominal_pinion_rpm,
-    )
     record_signals = _MeshRecord(signals, scans, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth,
                                  params, block_samples)
+    mesh = record_signals.mesh_phase_angle(rig.nominal_pinion_rpm)
     if rig.nominal_pinion_rpm is None:
         mesh = _checked_spectrum_speed(mesh, record_signals)
     elif isinstance(mesh, str):
