@@ -237,13 +237,15 @@ def _campaign_frame_angle_rev(tach: np.ndarray, record: RecordData, campaign: Ca
     resonances, a fresh spall). The mean over the pulses, not the first pulse alone: along a
     sweep the angle read from the mesh phase wanders with the path's phase, and the average
     sits where the wander's mean puts it. A spectrum speed the revolutions corrected is taken
-    again with the hint the chain used (``tachless["corrected_speed_hint_rpm"]``)."""
+    again with the hint the chain used (``tachless["corrected_speed_hint_rpm"]``), and without
+    the manifest's hint when that gave no angle (``tachless["hint_failed"]``)."""
     rig = campaign.rig
     assert rig.pinion_teeth is not None and rig.gear_teeth is not None
     angle = mesh_phase_angle({"acc": np.asarray(record.channels["acc"], dtype=np.float64)},
                              record.sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
-                             nominal_pinion_rpm=tachless.get("corrected_speed_hint_rpm",
-                                                             rig.nominal_pinion_rpm))
+                             nominal_pinion_rpm=tachless.get(
+                                 "corrected_speed_hint_rpm",
+                                 None if "hint_failed" in tachless else rig.nominal_pinion_rpm))
     assert not isinstance(angle, str), angle
     synthetic = angle.tach.pulse_times_s
     pulses = pulse_times_from_waveform(tach, record.sample_rate_hz)  # once per pinion revolution

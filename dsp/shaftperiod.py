@@ -22,9 +22,13 @@ which revolution is which).
 
 The other wheel interferes with the first test: its own pattern repeats every ``Z_other / g``
 revolutions of this one (``g = gcd`` of the tooth counts), so for a prime ``m`` dividing that
-hunting number the residue classes differ on a right angle too. Such a modulus is tested on the
-other wheel's revolutions instead (whose hunting number it cannot divide, the two being
-coprime): :func:`check_shaft_period`.
+hunting number the residue classes differ on a right angle too, and with a few revolutions per
+class it does not cancel for other primes either. The other wheel's synchronous average is
+therefore put back into every class as it sits there and taken out, and so is the scatter it
+causes (:func:`residue_z` with ``other_average``). The same test on the other wheel's
+revolutions is taken when it is the larger (:func:`check_shaft_period`). What neither wheel's
+average holds — content that repeats only once per hunting period, a pair of teeth meeting —
+can still make a right angle's classes differ: then the angle is refused, never accepted wrong.
 
 Pure: arrays in, numbers and a frozen dataclass out.
 """
@@ -306,20 +310,20 @@ def check_shaft_period(
 
     For every prime ``m`` of ``moduli``: the pinion average's orders not divisible by ``m`` must
     stand ``min_content_z`` above noise (:func:`unfolded_z`), and the residue classes mod ``m``
-    may differ by at most ``max_residue_z`` (:func:`residue_z`), on the pinion's revolutions, or
-    on the gear's when ``m`` divides the pinion's hunting number ``gear_teeth / g``. A prime too
-    large for the record's revolutions (a class left empty) is skipped above 5 and refuses
-    below.
+    may differ by at most ``max_residue_z`` (:func:`residue_z`, the other wheel's pattern taken
+    out): on the pinion's revolutions, and on the gear's unless ``m`` divides the gear's hunting
+    number ``pinion_teeth / g`` (the larger of the two counts). A prime too large for the
+    record's revolutions (a class left empty) is skipped above 5 and refuses below.
     """
     common = math.gcd(pinion_teeth, gear_teeth)
     unfolded: dict[int, float] = {}
     residue: dict[int, float] = {}
     wheel: dict[int, str] = {}
     problems: list[str] = []
+    gear_average = None if gear is None or gear.count == 0 else gear.total / gear.count
+    pinion_average = pinion.total / max(pinion.count, 1)
     for m in moduli:
         unfolded[m] = unfolded_z(pinion, pinion_teeth, m)
-        gear_average = None if gear is None or gear.count == 0 else gear.total / gear.count
-        pinion_average = pinion.total / max(pinion.count, 1)
         wheel[m], residue[m] = "pinion", residue_z(pinion, pinion_teeth, m, gear_average)
         if gear is not None and not (pinion_teeth // common) % m == 0:
             on_gear = residue_z(gear, gear_teeth, m, pinion_average)
