@@ -36,6 +36,7 @@ Pure: arrays in, numbers and a frozen dataclass out.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -167,16 +168,28 @@ def unfolded_z(sums: PeriodSums, teeth: int, m: int) -> float:
     return float(excess / math.sqrt(np.sum(noise**2)))
 
 
-def _other_wheel_rows(other_average: ArrayLike, samples_per_rev: int) -> FloatArray:
+ROWS_PER_CHUNK_SAMPLES = 1 << 22
+"""The other wheel's pattern is laid out at most this many samples at a time (32 MB): with 500
+teeth on each wheel a full layout would hold up to 500 revolutions' worth."""
+
+
+def _other_wheel_rows(other_average: ArrayLike, samples_per_rev: int) -> Iterator[tuple[int, FloatArray]]:
     """The other wheel's pattern as it sits in this wheel's revolution ``r``, for every
-    ``r mod period`` (rows). Both grids share one angle step and start at the same mark, so
-    sample ``s`` of revolution ``r`` is sample ``(r·N + s) mod N_other`` of the pattern."""
+    ``r mod period``: ``(first offset, rows)`` a chunk at a time. Both grids share one angle step
+    and start at the same mark, so sample ``s`` of revolution ``r`` is sample
+    ``(r·N + s) mod N_other`` of the pattern."""
     pattern = np.asarray(other_average, dtype=np.float64)
     n_other = pattern.size
     period = n_other // math.gcd(samples_per_rev, n_other)  # revolutions until the offsets repeat
-    offsets = (np.arange(period) * samples_per_rev) % n_other
-    return np.asarray(pattern[(offsets[:, None] + np.arange(samples_per_rev)[None, :]) % n_other],
-                      dtype=np.float64)
+    step = max(1, ROWS_PER_CHUNK_SAMPLES // samples_per_rev)
+    for first in range(0, period, step):
+        offsets = (np.arange(first, min(period, first + step)) * samples_per_rev) % n_other
+        yield first, pattern[(offsets[:, None] + np.arange(samples_per_rev)[None, :]) % n_other]
+
+
+def _offset_period(other_average: ArrayLike, samples_per_rev: int) -> int:
+    n_other = np.asarray(other_average).size
+    return n_other // math.gcd(samples_per_rev, n_other)
 
 
 def other_wheel_content(other_average: ArrayLike, samples_per_rev: int, indices: ArrayLike,
@@ -184,24 +197,32 @@ def other_wheel_content(other_average: ArrayLike, samples_per_rev: int, indices:
     """The other wheel's synchronous pattern as it sits in the mean of each class of this
     wheel's revolutions: ``(count, samples_per_rev)``; class ``c`` holds the revolutions
     ``indices[classes == c]`` (see :func:`_other_wheel_rows`)."""
-    rows = _other_wheel_rows(other_average, samples_per_rev)
+    period = _offset_period(other_average, samples_per_rev)
     index = np.asarray(indices, dtype=np.int64)
     label = np.asarray(classes, dtype=np.int64)
-    weights = np.zeros((count, rows.shape[0]))
-    np.add.at(weights, (label, index % rows.shape[0]), 1.0)
+    weights = np.zeros((count, period))
+    np.add.at(weights, (label, index % period), 1.0)
     weights /= np.maximum(weights.sum(axis=1, keepdims=True), 1.0)
-    return np.asarray(weights @ rows, dtype=np.float64)
+    content = np.zeros((count, samples_per_rev))
+    for first, rows in _other_wheel_rows(other_average, samples_per_rev):
+        content += weights[:, first : first + rows.shape[0]] @ rows
+    return content
 
 
 def _other_wheel_variance(other_average: ArrayLike, samples_per_rev: int, indices: ArrayLike) -> FloatArray:
     """Per order, the variance from revolution to revolution that the other wheel's pattern
     alone gives this wheel's revolutions ``indices`` (part of the measured scatter, not noise)."""
-    rows = _other_wheel_rows(other_average, samples_per_rev)
-    spectra = np.fft.rfft(rows, axis=1)
-    counts = np.bincount(np.asarray(indices, dtype=np.int64) % rows.shape[0], minlength=rows.shape[0])
+    period = _offset_period(other_average, samples_per_rev)
+    counts = np.bincount(np.asarray(indices, dtype=np.int64) % period, minlength=period)
     weights = counts / max(int(counts.sum()), 1)
-    mean = weights @ spectra
-    return np.asarray(weights @ np.abs(spectra) ** 2 - np.abs(mean) ** 2, dtype=np.float64)
+    mean = np.zeros(samples_per_rev // 2 + 1, dtype=np.complex128)
+    power = np.zeros(samples_per_rev // 2 + 1)
+    for first, rows in _other_wheel_rows(other_average, samples_per_rev):
+        spectra = np.fft.rfft(rows, axis=1)
+        chunk = weights[first : first + rows.shape[0]]
+        mean += chunk @ spectra
+        power += chunk @ np.abs(spectra) ** 2
+    return np.asarray(power - np.abs(mean) ** 2, dtype=np.float64)
 
 
 def residue_z(sums: PeriodSums, teeth: int, m: int, other_average: ArrayLike | None = None) -> float:

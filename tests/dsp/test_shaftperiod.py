@@ -124,3 +124,16 @@ def test_rejected_revolutions_keep_their_record_numbers() -> None:
     a.add(pinion[kept], kept)
     assert residue_z(a.result(), 20, 2) > MAX_RESIDUE_Z
     assert unfolded_z(a.result(), 20, 2) > MIN_CONTENT_Z
+
+
+def test_the_other_wheel_is_laid_out_a_chunk_at_a_time_with_the_same_result(monkeypatch: pytest.MonkeyPatch) -> None:
+    # 23/31 teeth: 31 offsets of the gear's pattern; in chunks of 2 revolutions the score is the same
+    import dsp.shaftperiod as shaftperiod
+
+    pinion, gear = revolutions(23, 31, 2.0, revs=70)
+    a = PeriodSumsAccumulator(pinion.shape[1])
+    a.add(pinion, np.arange(pinion.shape[0]))
+    whole = [residue_z(a.result(), 23, m, gear.mean(axis=0)) for m in (2, 3)]
+    monkeypatch.setattr(shaftperiod, "ROWS_PER_CHUNK_SAMPLES", 2 * pinion.shape[1])
+    chunked = [residue_z(a.result(), 23, m, gear.mean(axis=0)) for m in (2, 3)]
+    assert chunked == pytest.approx(whole, rel=1e-9)
