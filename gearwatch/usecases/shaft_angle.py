@@ -115,10 +115,16 @@ def record_shaft_angle(
     )
 
 
-@dataclass(frozen=True)
+MAX_ANGLE_ATTEMPTS = 10
+"""At most this many mesh-phase angles per record, the first included: each demodulates up to
+three harmonics on every channel, and a pathological record must not try every ratio of every
+prime (:func:`_checked_spectrum_speed`, :func:`_speed_corrected_by_revolutions`)."""
+
+
+@dataclass
 class _MeshRecord:
     """A record's accelerometer channels as the mesh-phase angle reads them (defects bridged),
-    with what the speed check needs."""
+    with what the speed check needs, and how many angles it has taken."""
 
     signals: Mapping[str, np.ndarray]
     scans: Mapping[str, ScannedSignal]
@@ -127,8 +133,14 @@ class _MeshRecord:
     gear_teeth: int
     params: AnalysisParameters
     block_samples: int
+    attempts: int = 0
 
     def mesh_phase_angle(self, hint_rpm: float | None) -> MeshPhaseAngle | str:
+        """:func:`gearwatch.usecases.tachless.mesh_phase_angle` at ``hint_rpm``, or a refusal
+        once :data:`MAX_ANGLE_ATTEMPTS` angles have been taken."""
+        if self.attempts >= MAX_ANGLE_ATTEMPTS:
+            return f"the speed search stopped after {MAX_ANGLE_ATTEMPTS} attempts"
+        self.attempts += 1
         return mesh_phase_angle(self.signals, self.sample_rate_hz, self.pinion_teeth,
                                 self.gear_teeth, self.params, nominal_pinion_rpm=hint_rpm)
 
