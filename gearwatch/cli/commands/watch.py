@@ -11,8 +11,9 @@ not list takes the reader's timestamp, else its modification time.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
-import time
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -63,8 +64,21 @@ def run(args: argparse.Namespace) -> int:
     watcher = FolderWatcher(folder, factory, store, params)
     if not args.once:
         print(f"watching {folder} every {args.interval:g} s (Ctrl-C to stop)", file=sys.stderr)
+    # Stop between polls on Ctrl-C or SIGTERM (docker stop, systemd), whatever the inherited
+    # disposition: a watcher started in the background of a non-interactive shell inherits
+    # SIGINT *ignored*, and Python then never raises KeyboardInterrupt.
+    stop = threading.Event()
+
+    def on_signal(*_: object) -> None:
+        if stop.is_set():  # asked twice: do not wait for the file being ingested
+            raise KeyboardInterrupt
+        stop.set()
+
+    if threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, on_signal)
     try:
-        while True:
+        while not stop.is_set():
             try:
                 done = watcher.poll(settle=not args.once)
             except ManifestError as error:
@@ -82,8 +96,10 @@ def run(args: argparse.Namespace) -> int:
                 print(line, flush=True)
             if args.once:
                 break
-            time.sleep(args.interval)
-    except KeyboardInterrupt:
+            stop.wait(args.interval)
+        if stop.is_set():
+            print("stopped", file=sys.stderr)
+    except KeyboardInterrupt:  # a second Ctrl-C while a file was being ingested
         print("stopped", file=sys.stderr)
     finally:
         campaign_rig = _rig_name(folder)
