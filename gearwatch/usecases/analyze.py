@@ -345,7 +345,9 @@ def _analyzed_channels(
             reference=None if tooth_frames is None else tooth_frames.get(name),
             campaign_mode=tooth_frames is not None,
             record_sha256=input_sha256,
-            check_period=(shaft.tachless or {}).get("speed_from") == "spectrum",
+            # a speed that did not come from the hint alone: the revolutions must confirm it
+            check_period=(shaft.tachless or {}).get("speed_from", "nominal_pinion_rpm")
+            != "nominal_pinion_rpm",
             unsteady_angle=unsteady_angle(shaft.tachless or {}),
         )
         try:

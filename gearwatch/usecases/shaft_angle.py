@@ -115,6 +115,9 @@ def record_shaft_angle(
     )
 
 
+HINT_OVERRULED = "nominal_pinion_rpm, corrected by the revolutions"
+"""``quality.tachless.speed_from`` of an angle whose hint its revolutions overruled
+(:func:`_hint_checked`); ``hint_speed_rpm`` keeps the speed the hint's angle had."""
 MAX_ANGLE_ATTEMPTS = 10
 """At most this many mesh-phase angles per record, the first included: each demodulates up to
 three harmonics on every channel, and a pathological record must not try every ratio of every
@@ -232,8 +235,11 @@ def _hint_checked(
     corrected, confirmed = _speed_corrected_by_revolutions(mesh, record)
     if not confirmed or corrected is mesh:
         return mesh
-    return MeshPhaseAngle(corrected.tach, {**corrected.summary, "speed_from": "spectrum",
-                                           "hint_overruled": True})
+    summary = {key: value for key, value in corrected.summary.items() if key != "spectrum_speed_rpm"}
+    return MeshPhaseAngle(corrected.tach, {
+        **summary, "speed_from": HINT_OVERRULED, "hint_overruled": True,
+        "hint_speed_rpm": round(float(mesh.tach.mean_rpm), 3),
+    })
 
 
 def _speed_corrected_by_revolutions(

@@ -383,9 +383,10 @@ class FramePlacement:
     """Non-empty (:func:`unsteady_angle`): the alignment must stand on the waveform match
     alone, without the per-tooth energy pattern's confirmation."""
     check_period: bool = False
-    """The speed came from the spectrum (no ``[rig] nominal_pinion_rpm``): it can be a wrong
-    member of the mesh-line family, so the revolutions must prove to be true ones
-    (:func:`dsp.shaftperiod.check_shaft_period`) before any per-tooth number is given."""
+    """The speed came from the spectrum (no ``[rig] nominal_pinion_rpm``, or a hint that gave no
+    angle or was overruled): it can be a wrong member of the mesh-line family, so the
+    revolutions must prove to be true ones (:func:`dsp.shaftperiod.check_shaft_period`) before
+    any per-tooth number is given."""
 
 
 @dataclass(frozen=True)

@@ -385,6 +385,8 @@ def test_a_speed_hint_far_off_that_day_is_overruled_by_the_revolutions(hint_rpm:
                               input_sha256="d", tooth_frames={})
     assert analysis.quality.tachless is not None
     assert analysis.quality.tachless["hint_overruled"] is True
+    assert analysis.quality.tachless["speed_from"] == "nominal_pinion_rpm, corrected by the revolutions"
+    assert analysis.quality.tachless["hint_speed_rpm"] > 1.4 * fx.RPM  # the hint's own angle
     assert analysis.quality.tachless["speed_corrected_by"] == corrected_by
     assert abs(analysis.speed_rpm / fx.RPM - 1) < 0.03
     frame = analysis.channels[0].tooth_frame
