@@ -180,7 +180,7 @@ def _other_wheel_rows(other_average: ArrayLike, samples_per_rev: int) -> Iterato
     ``(r·N + s) mod N_other`` of the pattern."""
     pattern = np.asarray(other_average, dtype=np.float64)
     n_other = pattern.size
-    period = n_other // math.gcd(samples_per_rev, n_other)  # revolutions until the offsets repeat
+    period = _offset_period(pattern, samples_per_rev)
     step = max(1, ROWS_PER_CHUNK_SAMPLES // samples_per_rev)
     for first in range(0, period, step):
         offsets = (np.arange(first, min(period, first + step)) * samples_per_rev) % n_other
@@ -188,6 +188,7 @@ def _other_wheel_rows(other_average: ArrayLike, samples_per_rev: int) -> Iterato
 
 
 def _offset_period(other_average: ArrayLike, samples_per_rev: int) -> int:
+    """Revolutions of this wheel until the other wheel's pattern sits at the same offset again."""
     n_other = np.asarray(other_average).size
     return n_other // math.gcd(samples_per_rev, n_other)
 

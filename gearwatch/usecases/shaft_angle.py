@@ -272,8 +272,7 @@ def _speed_corrected_by_revolutions(
             check = record.period_check(mesh)
         except ValueError:  # the angle cannot resample the record: left to the chain's refusal
             return mesh, False
-        factor = check.speed_factor
-        if not check.refusal or factor is None or attempt == MAX_SPEED_CORRECTIONS:
+        if not check.refusal or not check.speed_factors or attempt == MAX_SPEED_CORRECTIONS:
             return mesh, not check.refusal
         corrected: MeshPhaseAngle | str = "no correction"
         for factor in check.speed_factors:
