@@ -331,11 +331,20 @@ def check_shaft_period(
     """Are the pinion revolutions (and the gear's, cut from them) true revolutions?
 
     For every prime ``m`` of ``moduli``: the pinion average's orders not divisible by ``m`` must
-    stand ``min_content_z`` above noise (:func:`unfolded_z`), and the residue classes mod ``m``
+    stand ``min_content_z`` above noise (:func:`unfolded_z`) — the gear's, when ``m`` divides the
+    pinion's hunting number ``gear_teeth / g`` (below) —, and the residue classes mod ``m``
     may differ by at most ``max_residue_z`` (:func:`residue_z`, the other wheel's pattern taken
     out): on the pinion's revolutions, and on the gear's unless ``m`` divides the gear's hunting
     number ``pinion_teeth / g`` (the larger of the two counts). A prime too large for the
     record's revolutions (a class left empty) is skipped above 5 and refuses below.
+
+    Content that depends on which pair of teeth meets repeats every ``H = gear_teeth / g`` pinion
+    revolutions. An angle ``H`` times too slow sees it in every order of its "revolution", so
+    for a prime ``m`` dividing ``H`` the pinion's orders cannot tell (a 63/18 pair, ``g = 9``,
+    ``H = 2``, read at half its speed on the independent generator: 11 standard errors off the
+    even orders, confirmed, every tooth number wrong). The gear's revolutions can: the same
+    content repeats every ``pinion_teeth / g`` of them, which ``m`` does not divide (the two
+    hunting numbers are coprime).
     """
     common = math.gcd(pinion_teeth, gear_teeth)
     unfolded: dict[int, float] = {}
@@ -345,7 +354,11 @@ def check_shaft_period(
     gear_average = None if gear is None or gear.count == 0 else gear.total / gear.count
     pinion_average = pinion.total / max(pinion.count, 1)
     for m in moduli:
-        unfolded[m] = unfolded_z(pinion, pinion_teeth, m)
+        if (gear_teeth // common) % m == 0:  # the pair's content can repeat in a slow "revolution"
+            unfolded[m] = (math.nan if gear is None or gear.count < 2
+                           else unfolded_z(gear, gear_teeth, m))
+        else:
+            unfolded[m] = unfolded_z(pinion, pinion_teeth, m)
         wheel[m], residue[m] = "pinion", residue_z(pinion, pinion_teeth, m, gear_average)
         if gear is not None and not (pinion_teeth // common) % m == 0:
             on_gear = residue_z(gear, gear_teeth, m, pinion_average)

@@ -23,7 +23,7 @@ SPM = 16
 
 def revolutions(
     pinion_teeth: int, gear_teeth: int, speed_factor: float, *, revs: int = 90, noise: float = 0.3,
-    pinion_level: float = 0.3, gear_level: float = 0.3, seed: int = 0,
+    pinion_level: float = 0.3, gear_level: float = 0.3, pair_level: float = 0.0, seed: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Pinion and gear "revolutions" of an angle that turns ``speed_factor`` × the true one.
 
@@ -44,6 +44,11 @@ def revolutions(
     for k in rng.choice(np.arange(1, 3 * gear_teeth // 2), 20, replace=False):
         if k % gear_teeth:
             x += gear_level / math.sqrt(20) * np.cos(2 * np.pi * k * gear_theta + rng.uniform(0, 2 * np.pi))
+    hunting = gear_teeth // math.gcd(pinion_teeth, gear_teeth)  # pinion revolutions
+    if pair_level and hunting > 1:  # which pair of teeth meets: repeats once per hunting period
+        for k in rng.choice(np.arange(1, 3 * pinion_teeth * hunting // 2), 20, replace=False):
+            if k % hunting:
+                x += pair_level / math.sqrt(20) * np.cos(2 * np.pi * k * theta / hunting + rng.uniform(0, 2 * np.pi))
     x += noise * rng.standard_normal(x.size)
     pinion = x.reshape(revs, n)
     return pinion, gear_revolutions_from_pinion_grid(pinion, gear_teeth * SPM)
@@ -84,6 +89,21 @@ def test_an_angle_that_turns_too_slowly_is_refused(factor: float, prime: int) ->
     result = check(20, 21, factor, revs=180)
     assert result.unfolded[prime] < MIN_CONTENT_Z, result
     assert f"off multiples of {prime}" in result.refusal
+
+
+def test_pair_content_repeating_in_m_revolutions_does_not_confirm_an_angle_m_times_too_slow() -> None:
+    # 63/18 (g = 9): which pair of teeth meets repeats every 2 pinion revolutions. Read at half
+    # the speed, a "revolution" holds one whole hunting period, and the pair's content fills
+    # its odd orders as a pinion pattern would (the independent generator's held-out seed 9869
+    # was confirmed so, every tooth number wrong): the gear's revolutions decide
+    slow = check(63, 18, 0.5, pair_level=0.3)
+    assert not slow.unfolded[2] >= MIN_CONTENT_Z, slow
+    assert "multiples of 2" in slow.refusal
+    right = check(63, 18, 1.0, pair_level=0.3)
+    assert min(right.unfolded.values()) >= MIN_CONTENT_Z, right  # the gear's orders hold content
+    # (the pinion's classes mod 2 still differ through the pair's content on a right angle:
+    # refused as "too fast", never accepted wrong — a limit docs/tachless.md states)
+    assert check(63, 18, 1.0).refusal == ""
 
 
 def test_noise_alone_cannot_confirm_anything() -> None:
