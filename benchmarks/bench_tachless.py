@@ -238,14 +238,16 @@ def _campaign_frame_angle_rev(tach: np.ndarray, record: RecordData, campaign: Ca
     sweep the angle read from the mesh phase wanders with the path's phase, and the average
     sits where the wander's mean puts it. A spectrum speed the revolutions corrected is taken
     again with the hint the chain used (``tachless["corrected_speed_hint_rpm"]``), and without
-    the manifest's hint when that gave no angle (``tachless["hint_failed"]``)."""
+    the manifest's hint when that gave no angle (``tachless["hint_failed"]``); a day found near the
+    campaign's learned speed with it (``tachless["campaign_speed_rpm"]``)."""
     rig = campaign.rig
     assert rig.pinion_teeth is not None and rig.gear_teeth is not None
     angle = mesh_phase_angle({"acc": np.asarray(record.channels["acc"], dtype=np.float64)},
                              record.sample_rate_hz, rig.pinion_teeth, rig.gear_teeth, params,
                              nominal_pinion_rpm=tachless.get(
                                  "corrected_speed_hint_rpm",
-                                 None if "hint_failed" in tachless else rig.nominal_pinion_rpm))
+                                 None if "hint_failed" in tachless
+                                 else tachless.get("campaign_speed_rpm", rig.nominal_pinion_rpm)))
     assert not isinstance(angle, str), angle
     synthetic = angle.tach.pulse_times_s
     pulses = pulse_times_from_waveform(tach, record.sample_rate_hz)  # once per pinion revolution
@@ -445,7 +447,7 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
 
 REASON_KINDS = (
     ("ambiguous", "ambiguous tooth frame"), ("no match", "does not match the reference"),
-    ("no hint", "speed came from the spectrum"), ("no mesh line", "no mesh line"),
+    ("speed unconfirmed", "not confirmed by the revolutions"), ("no mesh line", "no mesh line"),
     ("band not clean", "not clean"),
 )
 

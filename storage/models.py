@@ -378,6 +378,8 @@ class ToothFrameReference(Base):
     pinion_position: Mapped[float] = mapped_column(default=0.0)
     pinion_fingerprint: Mapped[bytes] = mapped_column(sa.LargeBinary)
     gear_fingerprint: Mapped[bytes | None] = mapped_column(sa.LargeBinary)
+    speed_rpm: Mapped[float | None] = mapped_column(sa.Double)
+    """Pinion speed of the latest record numbered in the frame (the next tach-less record's hint)."""
     updated_at: Mapped[dt.datetime] = mapped_column(UTCDateTime(), default=utcnow, onupdate=utcnow)
 
 

@@ -34,6 +34,7 @@ class ToothFrameRepository:
                 gear_fingerprint=(None if row.gear_fingerprint is None
                                   else float32_array(row.gear_fingerprint).astype("float64")),
                 records=int(row.records),
+                speed_rpm=None if row.speed_rpm is None else float(row.speed_rpm),
             )
             for name, row in self._rows(campaign_id).items()
         }
@@ -52,4 +53,5 @@ class ToothFrameRepository:
         row.pinion_fingerprint = float32_bytes(reference.pinion_fingerprint)
         row.gear_fingerprint = (None if reference.gear_fingerprint is None
                                 else float32_bytes(reference.gear_fingerprint))
+        row.speed_rpm = None if reference.speed_rpm is None else float(reference.speed_rpm)
         self.session.flush()

@@ -248,6 +248,11 @@ class ToothFrameReference:
     gear_fingerprint: np.ndarray | None = None
     records: int = 1
     """How many records the fingerprints average (the first ones aligned with confidence)."""
+    speed_rpm: float | None = None
+    """The pinion speed of the latest record numbered in this frame (rpm; None: not known). A
+    tach-less record of a rig without ``[rig] nominal_pinion_rpm`` looks for its mesh line near
+    it (:func:`gearwatch.usecases.shaft_angle.record_shaft_angle`): the speed the campaign's own
+    revolutions (or its tachometer) confirmed, instead of the spectrum's guess."""
 
 
 @dataclass(frozen=True)

@@ -63,7 +63,12 @@ from gearwatch.usecases.angle_averages import (
     angle_averages,
     gear_revolutions_from_pinion_grid,
 )
-from gearwatch.usecases.shaft_angle import ShaftAngle, record_shaft_angle
+from gearwatch.usecases.shaft_angle import (
+    NOMINAL_SPEED,
+    TRUSTED_SPEEDS,
+    ShaftAngle,
+    record_shaft_angle,
+)
 from gearwatch.usecases.signal_checks import (
     CLIPPING_MIN_RUN,
     MAX_ABS_SAMPLE,
@@ -200,7 +205,8 @@ def analyze_record(
     # every channel's checks before any heavy work: a bad channel is left out (with its reason),
     # the record is refused only when every channel is
     scans, refused = _checked_channels(record, accelerometers, block_samples, params)
-    shaft = record_shaft_angle(record, campaign, params, sample_rate_hz, block_samples, scans)
+    shaft = record_shaft_angle(record, campaign, params, sample_rate_hz, block_samples, scans,
+                               campaign_speed_rpm=_campaign_speed_rpm(tooth_frames))
     if isinstance(shaft, str):
         return _raw_metrics_only(shaft, scans, campaign, params, input_sha256, refused)
     tach, pinion_per_tach_rev = shaft.tach, shaft.pinion_per_tach_rev
@@ -246,6 +252,15 @@ def analyze_record(
         samples_per_rev=first.samples_per_rev,
     )
 
+
+
+def _campaign_speed_rpm(tooth_frames: Mapping[str, ToothFrameReference] | None) -> float | None:
+    """The campaign's learned pinion speed (:attr:`ToothFrameReference.speed_rpm`): the first
+    channel's reference that has one (every channel's comes from the same records)."""
+    for reference in (tooth_frames or {}).values():
+        if reference.speed_rpm is not None:
+            return reference.speed_rpm
+    return None
 
 
 def _checked_channels(
@@ -346,8 +361,7 @@ def _analyzed_channels(
             campaign_mode=tooth_frames is not None,
             record_sha256=input_sha256,
             # a speed that did not come from the hint alone: the revolutions must confirm it
-            check_period=(shaft.tachless or {}).get("speed_from", "nominal_pinion_rpm")
-            != "nominal_pinion_rpm",
+            check_period=(shaft.tachless or {}).get("speed_from", NOMINAL_SPEED) not in TRUSTED_SPEEDS,
             unsteady_angle=unsteady_angle(shaft.tachless or {}),
         )
         try:

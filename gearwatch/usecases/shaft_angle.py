@@ -65,11 +65,17 @@ def record_shaft_angle(
     sample_rate_hz: float,
     block_samples: int,
     scans: Mapping[str, ScannedSignal],
+    campaign_speed_rpm: float | None = None,
 ) -> ShaftAngle | str:
     """The tach when it works; else the mesh phase when the tooth counts allow; else the reason.
 
     A dead, missing or unusable tach channel does not lose the record: the angle comes from
     the mesh phase instead (:func:`gearwatch.usecases.tachless.mesh_phase_angle`) and ``quality`` says why.
+    The mesh line is looked for near ``[rig] nominal_pinion_rpm``; without it, near
+    ``campaign_speed_rpm`` (the speed of the campaign's latest record numbered in its tooth
+    frame, :attr:`gearwatch.floor.results.ToothFrameReference.speed_rpm`), trusted as a
+    nominal speed is (``speed_from = "campaign_speed_rpm"``); without either, the spectrum's
+    speed, checked by the angle's revolutions.
     """
     tach_failure = ""
     if campaign.tachometer is not None:
@@ -99,13 +105,19 @@ def record_shaft_angle(
                else scan.samples for name, scan in scans.items()}
     record_signals = _MeshRecord(signals, scans, sample_rate_hz, rig.pinion_teeth, rig.gear_teeth,
                                  params, block_samples)
-    mesh = record_signals.mesh_phase_angle(rig.nominal_pinion_rpm)
-    if rig.nominal_pinion_rpm is None:
+    hint_rpm, hint_source = rig.nominal_pinion_rpm, NOMINAL_SPEED
+    if hint_rpm is None and campaign_speed_rpm is not None and campaign_speed_rpm > 0:
+        hint_rpm, hint_source = float(campaign_speed_rpm), CAMPAIGN_SPEED
+    mesh = record_signals.mesh_phase_angle(hint_rpm)
+    if hint_rpm is None:
         mesh = _checked_spectrum_speed(mesh, record_signals)
     elif isinstance(mesh, str):
         mesh = _without_the_hint(mesh, record_signals)
     else:
-        mesh = _hint_checked(mesh, record_signals)
+        mesh = _hint_checked(mesh, record_signals, hint_source)
+        if hint_source == CAMPAIGN_SPEED and mesh.summary["speed_from"] == NOMINAL_SPEED:
+            mesh = MeshPhaseAngle(mesh.tach, {**mesh.summary, "speed_from": CAMPAIGN_SPEED,
+                                              "campaign_speed_rpm": hint_rpm})
     if isinstance(mesh, str):
         return f"no shaft angle: {tach_failure}; mesh phase: {mesh}"
     return ShaftAngle(
@@ -115,9 +127,18 @@ def record_shaft_angle(
     )
 
 
-HINT_OVERRULED = "nominal_pinion_rpm, corrected by the revolutions"
-"""``quality.tachless.speed_from`` of an angle whose hint its revolutions overruled
-(:func:`_hint_checked`); ``hint_speed_rpm`` keeps the speed the hint's angle had."""
+NOMINAL_SPEED = "nominal_pinion_rpm"
+"""``quality.tachless.speed_from`` of an angle found near ``[rig] nominal_pinion_rpm``."""
+CAMPAIGN_SPEED = "campaign_speed_rpm"
+"""…near the speed of the campaign's latest record numbered in its tooth frame (no nominal
+speed; ``campaign_speed_rpm`` in the summary says which)."""
+OVERRULED = ", corrected by the revolutions"
+"""Appended to the hint's ``speed_from`` when its revolutions overruled it (:func:`_hint_checked`);
+``hint_speed_rpm`` keeps the speed the hint's angle had."""
+TRUSTED_SPEEDS = (NOMINAL_SPEED, CAMPAIGN_SPEED)
+"""Angles whose speed needs no check by their revolutions before per-tooth numbers
+(:attr:`gearwatch.usecases.tachless.FramePlacement.check_period`): a hint within ±20 % of the
+day's speed finds the right mesh line, and a hint far off is overruled or gives no angle."""
 MAX_ANGLE_ATTEMPTS = 10
 """At most this many mesh-phase angles per record, the first included: each demodulates up to
 three harmonics on every channel, and a pathological record must not try every ratio of every
@@ -223,6 +244,7 @@ def _without_the_hint(
 def _hint_checked(
     mesh: MeshPhaseAngle,
     record: _MeshRecord,
+    hint_source: str = NOMINAL_SPEED,
 ) -> MeshPhaseAngle:
     """An angle found near ``nominal_pinion_rpm``, replaced only when its revolutions show it a
     whole ratio off *and* the corrected angle's revolutions are confirmed.
@@ -237,7 +259,7 @@ def _hint_checked(
         return mesh
     summary = {key: value for key, value in corrected.summary.items() if key != "spectrum_speed_rpm"}
     return MeshPhaseAngle(corrected.tach, {
-        **summary, "speed_from": HINT_OVERRULED, "hint_overruled": True,
+        **summary, "speed_from": hint_source + OVERRULED, "hint_overruled": True,
         "hint_speed_rpm": round(float(mesh.tach.mean_rpm), 3),
     })
 

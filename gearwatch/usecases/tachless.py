@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -530,6 +530,11 @@ def fold_reference(
       reference they name in their ``tooth_frame``).
     * Otherwise the record's campaign-frame fingerprints are averaged in while the reference
       holds fewer than :data:`FOLD_RECORDS` records.
+
+    Every accepted record leaves its pinion speed (``speed_rpm``): its angle came from a tach,
+    from ``[rig] nominal_pinion_rpm``, from this speed or from a spectrum speed its revolutions
+    confirmed, and its averages matched the campaign's fingerprint. The next tach-less record
+    of a rig without a nominal speed starts its mesh-line search there.
     """
     prints = channel.frame_fingerprints
     kind = channel.tooth_frame.get("kind")
@@ -537,15 +542,18 @@ def fold_reference(
         return None
     frame: Literal["tachometer", "mesh_phase"] = "tachometer" if kind == "tachometer" else "mesh_phase"
     position = float(prints["pinion_position"][0])
+    speed_rpm = (float(channel.speed_rpm) if channel.speed_rpm > 0
+                 else None if reference is None else reference.speed_rpm)
     if reference is None or (reference.frame == "mesh_phase" and frame == "tachometer"):
         return ToothFrameReference(
             frame=frame, record_sha256=record_sha256,
             pinion_fingerprint=np.asarray(prints["pinion"], dtype=np.float64),
             pinion_position=position,
             gear_fingerprint=None if "gear" not in prints else np.asarray(prints["gear"], dtype=np.float64),
+            speed_rpm=speed_rpm,
         )
     if reference.records >= FOLD_RECORDS:
-        return None
+        return None if speed_rpm == reference.speed_rpm else replace(reference, speed_rpm=speed_rpm)
     n = reference.records
 
     def mean(old: np.ndarray, new: np.ndarray) -> np.ndarray:
@@ -563,5 +571,5 @@ def fold_reference(
     return ToothFrameReference(
         frame=reference.frame, record_sha256=reference.record_sha256,
         pinion_fingerprint=pinion, pinion_position=reference.pinion_position,
-        gear_fingerprint=gear, records=n + 1,
+        gear_fingerprint=gear, records=n + 1, speed_rpm=speed_rpm,
     )

@@ -66,8 +66,10 @@ def record(
 def write_campaign(
     folder: Path, days: int, *, onset_day: int = 99, tach_days: tuple[int, ...] = (),
     with_tach_channel: bool = False, spall_tooth: int = 7, seconds: float = 3.0,
+    nominal_speed: bool = True,
 ) -> Path:
-    """A campaign folder (NPZ records); returns the manifest path."""
+    """A campaign folder (NPZ records); returns the manifest path. ``nominal_speed=False``: the
+    manifest has no ``[rig] nominal_pinion_rpm``."""
     folder.mkdir(parents=True, exist_ok=True)
     records = []
     for day in range(1, days + 1):
@@ -83,7 +85,7 @@ def write_campaign(
     manifest: dict[str, object] = {
         "campaign": {"id": f"tachless-{folder.name}", "description": "tach-less test"},
         "rig": {"id": f"rig-{folder.name}", "pinion_teeth": PINION, "gear_teeth": GEAR,
-                "nominal_pinion_rpm": RPM},
+                **({"nominal_pinion_rpm": RPM} if nominal_speed else {})},
         "acquisition": {"sample_rate_hz": FS},
         "channels": channels,
         "records": records,

@@ -14,7 +14,7 @@ import sqlalchemy as sa
 
 from gearwatch.cli.main import main
 from gearwatch.floor.campaign import Campaign, ChannelConfig, RecordData, RigConfig
-from gearwatch.floor.results import AnalysisParameters, RecordAnalysis
+from gearwatch.floor.results import AnalysisParameters, RecordAnalysis, ToothFrameReference
 from gearwatch.usecases.analyze import analyze_file, analyze_record
 from gearwatch.usecases.replay import replay_campaign
 from ingest.manifest import load_manifest
@@ -217,6 +217,7 @@ def test_a_tachless_campaign_replays_every_record_accepted_and_alarms_the_spall_
         assert all(f["pinion"]["margin"] > 0.3 for f in frames[1:])
         reference = ToothFrameRepository(session).references(records[0].campaign_id)["acc"]
         assert reference.frame == "mesh_phase" and reference.records == 5  # folded, then frozen
+        assert reference.speed_rpm == pytest.approx(records[-1].speed_rpm)  # the last day's
         alarms = AlarmRepository(session).list()
         tooth_alarms = {a.tooth for a in alarms if a.tooth}  # 0: whole-record metrics
         assert len(tooth_alarms) == 1, alarms
@@ -326,11 +327,11 @@ def test_the_real_spectraquest_records_get_a_tachless_angle_and_one_frame() -> N
     assert frame["kind"] == "campaign" and frame["pinion"]["margin"] > 0.3, frame
 
 
-def _without_hint(record: dict[str, np.ndarray]) -> RecordAnalysis:
+def _without_hint(record: dict[str, np.ndarray], reference: ToothFrameReference | None = None) -> RecordAnalysis:
     rig = RigConfig("r", fx.PINION, fx.GEAR)  # no nominal_pinion_rpm
     campaign = Campaign("c", "", rig, fx.FS, None, (ChannelConfig("acc", "accelerometer"),))
-    return analyze_record(RecordData({"acc": record["acc"]}, fx.FS), campaign,
-                          input_sha256="d", tooth_frames={})
+    return analyze_record(RecordData({"acc": record["acc"]}, fx.FS), campaign, input_sha256="d",
+                          tooth_frames={} if reference is None else {"acc": reference})
 
 
 def test_without_a_speed_hint_the_revolutions_confirm_the_spectrum_speed() -> None:
@@ -414,3 +415,90 @@ def test_a_right_speed_hint_is_kept_and_not_checked_into_a_refusal() -> None:
     assert analysis.quality.tachless["speed_from"] == "nominal_pinion_rpm"
     assert "hint_overruled" not in analysis.quality.tachless
     assert "period_check" not in analysis.channels[0].tooth_frame
+
+
+def test_without_a_speed_hint_the_campaigns_learned_speed_numbers_what_the_revolutions_cannot_confirm() -> None:
+    # day 1's spectrum speed is confirmed by its revolutions and founds the frame with its speed;
+    # day 2's tooth pattern is too weak for its revolutions to confirm the spectrum's speed
+    # alone (refused, the premise is checked), but the campaign's speed is trusted as a nominal
+    # speed is: the day is numbered, in the same frame as with the rig's true nominal speed
+    from gearwatch.usecases.tachless import fold_reference
+
+    first = _without_hint(fx.record(1))
+    reference = fold_reference(None, first.channels[0], "d1")
+    assert reference is not None and reference.speed_rpm == pytest.approx(first.speed_rpm)
+    weak = fx.record(2, pattern=0.05)
+    alone = _without_hint(weak)
+    assert alone.channels[0].tooth_frame["kind"] == "refused" and not alone.channels[0].teeth
+
+    rig = RigConfig("r", fx.PINION, fx.GEAR)
+    campaign = Campaign("c", "", rig, fx.FS, None, (ChannelConfig("acc", "accelerometer"),))
+    learned = analyze_record(RecordData({"acc": weak["acc"]}, fx.FS), campaign, input_sha256="d2",
+                             tooth_frames={"acc": reference})
+    assert learned.quality.tachless is not None
+    assert learned.quality.tachless["speed_from"] == "campaign_speed_rpm"
+    assert learned.quality.tachless["campaign_speed_rpm"] == reference.speed_rpm
+    frame = learned.channels[0].tooth_frame
+    assert frame["kind"] == "campaign" and "period_check" not in frame, frame
+    nominal = analyze_record(RecordData({"acc": weak["acc"]}, fx.FS), _campaign(), input_sha256="d2",
+                             tooth_frames={"acc": reference})
+    assert frame["pinion"]["shift_teeth"] == nominal.channels[0].tooth_frame["pinion"]["shift_teeth"]
+    assert learned.channels[0].worst_tooth == nominal.channels[0].worst_tooth
+
+
+def test_a_learned_speed_far_off_that_day_is_overruled_like_a_nominal_one() -> None:
+    from dataclasses import replace
+
+    from gearwatch.usecases.tachless import fold_reference
+
+    first = _without_hint(fx.record(1))
+    reference = fold_reference(None, first.channels[0], "d1")
+    assert reference is not None
+    rig = RigConfig("r", fx.PINION, fx.GEAR)
+    campaign = Campaign("c", "", rig, fx.FS, None, (ChannelConfig("acc", "accelerometer"),))
+    # the rig ran at 900 rpm; the campaign's last numbered day had run at 1500
+    analysis = analyze_record(RecordData({"acc": fx.record(2)["acc"]}, fx.FS), campaign, input_sha256="d2",
+                              tooth_frames={"acc": replace(reference, speed_rpm=1500.0)})
+    assert analysis.quality.tachless is not None
+    assert analysis.quality.tachless["speed_from"] == "campaign_speed_rpm, corrected by the revolutions"
+    assert abs(analysis.speed_rpm / fx.RPM - 1) < 0.03
+    assert analysis.channels[0].tooth_frame["period_check"]["confirmed"] is True
+
+
+def test_every_numbered_record_leaves_its_speed_in_the_reference() -> None:
+    from gearwatch.usecases.tachless import FOLD_RECORDS, fold_reference
+
+    reference = None
+    for day in range(1, FOLD_RECORDS + 3):
+        analysis = _without_hint(fx.record(day), reference)
+        assert analysis.quality.tachless is not None
+        assert analysis.quality.tachless["speed_from"] == ("spectrum" if day == 1 else "campaign_speed_rpm")
+        channel = analysis.channels[0]
+        folded = fold_reference(reference, channel, f"d{day}")
+        # the fingerprints stop changing after FOLD_RECORDS records; the speed follows every day
+        assert folded is not None and folded.speed_rpm == pytest.approx(channel.speed_rpm)
+        assert folded.records == min(day, FOLD_RECORDS)
+        reference = folded
+    assert reference is not None
+    refused = _without_hint(fx.record(9, pattern=0.0), reference).channels[0]
+    assert refused.tooth_frame["kind"] == "refused"
+    assert fold_reference(reference, refused, "d9") is None  # a refused day leaves nothing
+
+
+def test_a_campaign_without_a_speed_hint_replays_on_the_speed_its_first_numbered_day_confirmed(
+    db_engine: sa.Engine, tmp_path: Path
+) -> None:
+    manifest = fx.write_campaign(tmp_path / "nohint", 4, nominal_speed=False)
+    factory = session_factory(db_engine)
+    summary = replay_campaign(manifest, factory, RawStore(tmp_path / "store"), progress=False)
+    assert summary.outcomes == {"accepted": 4}
+    with session_scope(factory) as session:
+        records = RecordRepository(session).list(limit=None)
+        sources = [r.quality["tachless"]["speed_from"] for r in records]
+        assert sources == ["spectrum"] + ["campaign_speed_rpm"] * 3
+        frames = [r.quality["tooth_frames"]["acc"] for r in records]
+        assert all(f["kind"] == "campaign" for f in frames), frames
+        reference = ToothFrameRepository(session).references(records[0].campaign_id)["acc"]
+        assert reference.speed_rpm == pytest.approx(records[-1].speed_rpm)
+        assert [r.quality["tachless"].get("campaign_speed_rpm") for r in records[1:]] == pytest.approx(
+            [r.speed_rpm for r in records[:-1]])
