@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "MAX_MESH_FAMILY_RATIO",
     "MAX_RESIDUE_Z",
     "MIN_CONTENT_Z",
     "MODULI",
@@ -51,6 +52,7 @@ __all__ = [
     "PeriodSums",
     "PeriodSumsAccumulator",
     "check_shaft_period",
+    "mesh_family_ratio",
     "residue_z",
     "unfolded_z",
 ]
@@ -58,9 +60,11 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 ComplexArray = NDArray[np.complex128]
 
+MAX_HARMONIC_RATIO = 16
+"""A mesh-phase angle taken from harmonic ``h`` of a line read as harmonic ``h'`` turns ``h/h'``
+times too fast, ``h, h' ≤ 16``."""
 MODULI = (2, 3, 5, 7, 11, 13)
-"""Primes tested: a mesh-phase angle taken from harmonic ``h`` of a line read as harmonic
-``h'`` turns ``h/h'`` times too fast, ``h, h' ≤ 16``."""
+"""Primes tested: those of the ratios ``h/h'`` (:data:`MAX_HARMONIC_RATIO`)."""
 MIN_CONTENT_Z = 6.0
 """The average's orders not divisible by each tested prime must stand this many standard errors
 above the noise (else the revolution may be several true ones, or there is too little
@@ -259,6 +263,73 @@ def residue_z(sums: PeriodSums, teeth: int, m: int, other_average: ArrayLike | N
     return (q - expected) / spread if spread > 0 else math.nan
 
 
+MAX_MESH_FAMILY_RATIO = 1.0
+"""A line standing at an order where the mesh's own harmonics would sit if the angle turned
+``m`` times too fast (``(Z/m)·j``, not a multiple of ``Z``) may hold at most the strongest mesh
+harmonic's power (:func:`mesh_family_ratio`). Measured on right angles (the tach's, development
+seeds 1000–1019 of ``benchmarks/bench_tachless.py``, 8 days each): at most 0.45 on the project's
+simulator (a 26-tooth pinion's orders 6–24, a 22-tooth one's 6–20), 0.14 on the independent
+generator; on the angles 3 times too fast that were confirmed before (independent seed 9874),
+2.1–2.7 every day."""
+MIN_FAMILY_ORDER = 5
+"""Shaft orders below this are left out of :func:`mesh_family_ratio`: runout and misalignment
+lines, often stronger than the mesh on a real rig."""
+LINE_ABOVE_NOISE = 25.0
+"""…counted only when its power stands this many times above its noise (5 standard errors in
+amplitude): a weak mesh harmonic must not make noise look like a line."""
+
+
+def mesh_family_ratio(sums: PeriodSums, teeth: int, m: int, other_teeth: int | None = None) -> float:
+    """The strongest line at the orders ``(teeth/m)·j`` (``j`` not divisible by ``m``) against
+    the strongest mesh harmonic (orders ``teeth·j``), in power; 0 when no such line stands
+    :data:`LINE_ABOVE_NOISE` above noise, NaN when ``m`` does not divide ``teeth``. Orders below
+    :data:`MIN_FAMILY_ORDER` and those where the other wheel is synchronous (multiples of
+    ``teeth / gcd(teeth, other_teeth)``; not left out when ``other_teeth`` is None) do not count.
+
+    An angle ``m`` times too fast puts the mesh's true harmonics ``j`` at the orders
+    ``(teeth/m)·j``: a whole order when ``m`` divides ``teeth``, so they are as synchronous as
+    on a right angle and the residue classes do not differ through them. When the other wheel
+    is synchronous too (its teeth dividing ``teeth/m``: a 42/14 pair read 3 times too fast
+    holds exactly one gear revolution per "revolution") only the pinion's own pattern can show
+    in the classes, and under noise it may not (held-out seed 9874 of the independent
+    generator). The mesh lines then show it: on a right angle those orders hold only a tooth
+    pattern repeating every ``m`` teeth, at most a fraction of the strongest mesh harmonic
+    (:data:`MAX_MESH_FAMILY_RATIO`).
+
+    Examples
+    --------
+    Three mesh harmonics (amplitudes 1, ½, ½) on a right 42-tooth angle, and on one turning 3
+    times too fast (the true mesh at order 14, its 3rd harmonic taken for the 1st):
+
+    >>> import numpy as np
+    >>> n, teeth = 42 * 8, 42
+    >>> def sums(mesh_order):
+    ...     theta = np.arange(40 * n) / n
+    ...     x = sum(a * np.cos(2 * np.pi * h * mesh_order * theta) for h, a in ((1, 1.0), (2, 0.5), (3, 0.5)))
+    ...     acc = PeriodSumsAccumulator(n)
+    ...     acc.add((x + 0.1 * np.random.default_rng(0).standard_normal(x.size)).reshape(40, n), np.arange(40))
+    ...     return acc.result()
+    >>> round(mesh_family_ratio(sums(42), teeth, 3), 3), round(mesh_family_ratio(sums(14), teeth, 3), 1)
+    (0.0, 4.0)
+    """
+    if teeth % m or sums.count < 2:
+        return math.nan
+    average, variance, _ = _orders(sums, teeth)
+    power = np.abs(average) ** 2
+    k = np.arange(average.size)
+    band = (k > 0) & (2 * k < sums.total.size)
+    mesh = band & (k % teeth == 0)
+    if not mesh.any() or not power[mesh].max() > 0:
+        return math.nan
+    family = band & (k % (teeth // m) == 0) & (k % teeth != 0) & (k >= MIN_FAMILY_ORDER)
+    if other_teeth is not None:
+        family &= k % (teeth // math.gcd(teeth, other_teeth)) != 0
+    standing = family & (power > LINE_ABOVE_NOISE * variance / sums.count)
+    if not standing.any():
+        return 0.0
+    return float(power[standing].max() / power[mesh].max())
+
+
 @dataclass(frozen=True)
 class PeriodCheck:
     """The verdict of :func:`check_shaft_period`: ``refusal`` is ``""`` when the revolutions are
@@ -270,6 +341,9 @@ class PeriodCheck:
     residue_wheel: dict[int, str]
     min_content_z: float = MIN_CONTENT_Z
     max_residue_z: float = MAX_RESIDUE_Z
+    mesh_family: dict[int, float] = field(default_factory=dict)
+    """Per prime dividing the pinion's teeth: :func:`mesh_family_ratio`."""
+    max_mesh_family_ratio: float = MAX_MESH_FAMILY_RATIO
 
     @property
     def speed_factor(self) -> Fraction | None:
@@ -292,6 +366,9 @@ class PeriodCheck:
         fast = {m: z for m, z in self.residue.items() if z > self.max_residue_z}
         if fast:
             return Fraction(1, max(fast, key=lambda m: fast[m]))
+        lines = {m: r for m, r in self.mesh_family.items() if r > self.max_mesh_family_ratio}
+        if lines:
+            return Fraction(1, max(lines, key=lambda m: lines[m]))
         content = {m: z for m, z in self.unfolded.items() if math.isfinite(z)}
         if not content or max(content.values()) < self.min_content_z:
             return None
@@ -331,30 +408,33 @@ def check_shaft_period(
     """Are the pinion revolutions (and the gear's, cut from them) true revolutions?
 
     For every prime ``m`` of ``moduli``: the pinion average's orders not divisible by ``m`` must
-    stand ``min_content_z`` above noise (:func:`unfolded_z`) — the gear's, when ``m`` divides the
-    pinion's hunting number ``gear_teeth / g`` (below) —, and the residue classes mod ``m``
+    stand ``min_content_z`` above noise (:func:`unfolded_z`) — the gear's, when an angle slow by a
+    multiple of ``m`` would hold whole hunting periods (below) —, and the residue classes mod ``m``
     may differ by at most ``max_residue_z`` (:func:`residue_z`, the other wheel's pattern taken
     out): on the pinion's revolutions, and on the gear's unless ``m`` divides the gear's hunting
     number ``pinion_teeth / g`` (the larger of the two counts). A prime too large for the
     record's revolutions (a class left empty) is skipped above 5 and refuses below.
 
     Content that depends on which pair of teeth meets repeats every ``H = gear_teeth / g`` pinion
-    revolutions. An angle ``H`` times too slow sees it in every order of its "revolution", so
-    for a prime ``m`` dividing ``H`` the pinion's orders cannot tell (a 63/18 pair, ``g = 9``,
-    ``H = 2``, read at half its speed on the independent generator: 11 standard errors off the
-    even orders, confirmed, every tooth number wrong). The gear's revolutions can: the same
-    content repeats every ``pinion_teeth / g`` of them, which ``m`` does not divide (the two
-    hunting numbers are coprime).
+    revolutions. An angle ``q`` times too slow, ``q`` a multiple of ``H``, sees it in every order
+    of its "revolution", so for a prime ``m`` whose smallest such ``q = lcm(m, H)`` is a ratio a
+    wrong harmonic can give (≤ :data:`MAX_HARMONIC_RATIO`) the pinion's orders cannot tell (a
+    63/18 pair, ``g = 9``, ``H = 2``, read at half its speed on the independent generator: 11
+    standard errors off the even orders, confirmed, every tooth number wrong). The gear's
+    revolutions can: the same content repeats every ``pinion_teeth / g`` of them, which ``m``
+    does not divide (the two hunting numbers are coprime). With a large ``H`` (38 on a 25/38
+    pair) the pinion's orders decide, as the gear's hold less content.
     """
     common = math.gcd(pinion_teeth, gear_teeth)
     unfolded: dict[int, float] = {}
     residue: dict[int, float] = {}
     wheel: dict[int, str] = {}
+    family: dict[int, float] = {}
     problems: list[str] = []
     gear_average = None if gear is None or gear.count == 0 else gear.total / gear.count
     pinion_average = pinion.total / max(pinion.count, 1)
     for m in moduli:
-        if (gear_teeth // common) % m == 0:  # the pair's content can repeat in a slow "revolution"
+        if math.lcm(m, gear_teeth // common) <= MAX_HARMONIC_RATIO:  # see the note above
             unfolded[m] = (math.nan if gear is None or gear.count < 2
                            else unfolded_z(gear, gear_teeth, m))
         else:
@@ -377,6 +457,14 @@ def check_shaft_period(
             )
         elif math.isnan(residue[m]) and m <= 5:
             problems.append(f"too few {wheel[m]} revolutions to check the period against {m}")
+        if pinion_teeth % m == 0:
+            family[m] = mesh_family_ratio(pinion, pinion_teeth, m, gear_teeth)
+            if family[m] > MAX_MESH_FAMILY_RATIO:
+                problems.append(
+                    f"a line at an order of {pinion_teeth // m}·j holds {family[m]:.2f} of the strongest "
+                    f"mesh harmonic's power: the mesh's own harmonics sit there when the angle turns "
+                    f"{m}× too fast"
+                )
     refusal = ("the shaft speed from the spectrum is not confirmed by the revolutions: "
                + "; ".join(problems)) if problems else ""
-    return PeriodCheck(refusal, unfolded, residue, wheel, min_content_z, max_residue_z)
+    return PeriodCheck(refusal, unfolded, residue, wheel, min_content_z, max_residue_z, family)

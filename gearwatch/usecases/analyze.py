@@ -547,7 +547,9 @@ def _grids(
 def _period_check_json(check: PeriodCheck) -> dict[str, Any]:
     """The speed check of a spectrum-speed record for ``tooth_frame.period_check``: per prime,
     how far the average's orders off its multiples stand above noise and how much the residue
-    classes differ (standard errors), and on which wheel that was tested."""
+    classes differ (standard errors), and on which wheel that was tested; per prime dividing the
+    pinion's teeth, the strongest line where the mesh would sit were the angle that much too
+    fast, against the strongest mesh harmonic (:func:`dsp.shaftperiod.mesh_family_ratio`)."""
 
     def z(value: float) -> float | None:
         return round(value, 2) if math.isfinite(value) else None
@@ -556,6 +558,8 @@ def _period_check_json(check: PeriodCheck) -> dict[str, Any]:
         "confirmed": not check.refusal,
         "unfolded_z": {str(m): z(v) for m, v in check.unfolded.items()},
         "residue_z": {str(m): z(v) for m, v in check.residue.items()},
+        "mesh_family_ratio": {str(m): round(v, 4) if math.isfinite(v) else None
+                              for m, v in check.mesh_family.items()},
         "residue_wheel": {str(m): w for m, w in check.residue_wheel.items()},
     }
 

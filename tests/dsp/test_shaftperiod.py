@@ -4,11 +4,13 @@ turns a whole ratio too fast or too slow is refused, the other wheel does not fo
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
 
 from dsp.shaftperiod import (
+    MAX_MESH_FAMILY_RATIO,
     MAX_RESIDUE_Z,
     MIN_CONTENT_Z,
     PeriodSumsAccumulator,
@@ -104,6 +106,20 @@ def test_pair_content_repeating_in_m_revolutions_does_not_confirm_an_angle_m_tim
     # (the pinion's classes mod 2 still differ through the pair's content on a right angle:
     # refused as "too fast", never accepted wrong — a limit docs/tachless.md states)
     assert check(63, 18, 1.0).refusal == ""
+
+
+def test_an_angle_too_fast_by_the_ratio_of_a_pair_is_refused_by_its_mesh_lines() -> None:
+    # 42/14 read 3 times too fast: a "revolution" is exactly one gear revolution, the gear and
+    # the true mesh (at order 14) are synchronous with it, and a pinion pattern below the noise
+    # leaves the residue classes alike (the independent generator's held-out seed 9874 was
+    # confirmed so). The mesh's own lines, at orders 14 and 28, give it away.
+    fast = check(42, 14, 3.0, pinion_level=0.02)
+    assert fast.residue[3] < MAX_RESIDUE_Z  # the premise: the classes do not tell
+    assert fast.mesh_family[3] > MAX_MESH_FAMILY_RATIO
+    assert "the mesh's own harmonics sit there when the angle turns 3× too fast" in fast.refusal
+    assert fast.speed_factor == Fraction(1, 3)
+    right = check(42, 14, 1.0)
+    assert right.refusal == "" and right.mesh_family[3] < MAX_MESH_FAMILY_RATIO, right
 
 
 def test_noise_alone_cannot_confirm_anything() -> None:
