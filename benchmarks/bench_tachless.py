@@ -29,6 +29,11 @@ Scored (the tach is used only to score):
   depend on how alike a day's tach and tach-less averages look, which the first truth does (a
   speed sweeping through the path's resonances changes an average's shape, and so does a fresh
   spall: on those days the averages' best match can be a tooth off while the frame is right);
+* **the speed** of every numbered tach-less day against the tach's (``speed_ratios``;
+  ``numbered_at_a_wrong_speed`` counts those more than 3 % off): a frame found every day at half
+  the speed is consistent from day to day — both truths above call it right — and numbers
+  nothing right (added 2026-11-28, after development seed 1016 of the independent generator,
+  56/28 teeth, was found so);
 * **first alarm day** and **alarmed tooth** of one fixed bench rule on ``mci_depth``
   (:class:`detection.alarms.RuleSettings`: baseline from the first 4 days, warning at 4 robust
   spreads, persistence 2) in both chains; the tach-less tooth is mapped to the tach numbering
@@ -354,6 +359,7 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
     spm = params.samples_per_mesh
     n = spec.pinion_teeth * spm
     reasons: list[str] = []
+    speed_ratios: list[float] = []  # per numbered tach-less day: its speed / the tach's
     for index, day in enumerate(days):
         acc = day["acc"].astype(np.float64)
         factor = spec.noise_ratio * float(np.clip(1 + rng.normal(0, 0.15), 0.6, 1.5))
@@ -400,6 +406,9 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
                 margins.append(frame["pinion"]["margin"])
             continue
         tl_teeth.append({t.tooth: t.mci_depth for t in channel.teeth})
+        # a third truth: a frame can be consistent from day to day at a wrong speed (every day
+        # at half of it, say) and still number nothing right
+        speed_ratios.append(round(tl.speed_rpm / tach_result.speed_rpm, 4))
         angle = _campaign_frame_angle_rev(tach, RecordData({"acc": noisy}, fs), without, params, frame, n, q)
         if pulse_reference is None:
             pulse_reference = angle
@@ -442,6 +451,7 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         "product_tach_first_alarm": [product_tach_day, product_tach_tooth],
         "product_tachless_first_alarm": [product_tl_day, in_tach_numbering(product_tl_tooth_campaign)],
         "reasons": [r for r in reasons if r],
+        "speed_ratios": speed_ratios,
     }
 
 
@@ -491,6 +501,12 @@ def _agreement(rows: list[dict[str, Any]], tach_key: str,
     return same_day, same_tooth, near_tooth, both_silent, tach_right, tachless_right
 
 
+WRONG_SPEED = 0.03
+"""A numbered tach-less day whose speed is more than 3 % off the tach's is counted wrong
+(``numbered_at_a_wrong_speed``): the speed drifts by less within a day, a wrong member of the
+mesh-line family is off by a ratio of small integers."""
+
+
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     days = [a for r in rows for a in r["alignment"] if a not in ("reference", NO_TACH_TRUTH)]
     after_onset = [a for r in rows for d, a in enumerate(r["alignment"], start=1)
@@ -523,6 +539,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "spalled_wrong": after_onset.count("wrong"),
         "spalled_refused": after_onset.count("refused") + after_onset.count("no-angle"),
         "reasons": reason_counts(rows),
+        "numbered_at_a_wrong_speed": sum(abs(ratio - 1) > WRONG_SPEED for r in rows
+                                         for ratio in r.get("speed_ratios", [])),
     }
 
 
@@ -589,7 +607,8 @@ def main() -> int:
               f"alarm on the spalled tooth (on or after onset): tach {s['product_spall_tooth_tach']}, "
               f"tach-less {s['product_spall_tooth_tachless']} of {s['campaigns']}")
         print(f"{name}: aligned days by the pulses' truth (the tach's angle at the campaign frame's "
-              f"sample 0): right {s['right_by_pulses']}, wrong {s['wrong_by_pulses']}")
+              f"sample 0): right {s['right_by_pulses']}, wrong {s['wrong_by_pulses']}; numbered at a "
+              f"speed more than {WRONG_SPEED:.0%} off the tach's: {s['numbered_at_a_wrong_speed']}")
         print(f"{name}: days with the spall: {s['spalled_days']}, right {s['spalled_right']}, "
               f"refused/no angle {s['spalled_refused']}, wrong {s['spalled_wrong']}; "
               f"refusals by reason: {s['reasons']}")

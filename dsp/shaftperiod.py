@@ -47,6 +47,7 @@ __all__ = [
     "MAX_MESH_FAMILY_RATIO",
     "MAX_RESIDUE_Z",
     "MIN_CONTENT_Z",
+    "MIN_UNFOLDED_SHARE",
     "MODULI",
     "PeriodCheck",
     "PeriodSums",
@@ -54,6 +55,7 @@ __all__ = [
     "check_shaft_period",
     "mesh_family_ratio",
     "residue_z",
+    "unfolded_share",
     "unfolded_z",
 ]
 
@@ -69,6 +71,9 @@ MIN_CONTENT_Z = 6.0
 """The average's orders not divisible by each tested prime must stand this many standard errors
 above the noise (else the revolution may be several true ones, or there is too little
 tooth-specific content to tell)."""
+MIN_UNFOLDED_SHARE = 0.05
+"""…and their excess power must be at least this share of the excess at the multiples of the
+prime (mesh harmonics left out; :func:`unfolded_share`)."""
 MAX_RESIDUE_Z = 3.5
 """…and the residue-class averages of every tested prime may differ by at most this many
 standard errors more than noise makes them (else the revolution is a piece of a true one)."""
@@ -170,6 +175,30 @@ def unfolded_z(sums: PeriodSums, teeth: int, m: int) -> float:
         return math.nan
     excess = np.sum(np.abs(average[chosen]) ** 2 - noise)
     return float(excess / math.sqrt(np.sum(noise**2)))
+
+
+def unfolded_share(sums: PeriodSums, teeth: int, m: int) -> float:
+    """The average's excess power (above noise) at the orders not divisible by ``m`` over that at
+    the orders divisible by it, mesh harmonics and order 0 left out; NaN when the latter is not
+    positive.
+
+    :func:`unfolded_z` asks whether those orders hold anything; this asks whether they hold a
+    revolution's worth. An angle ``m`` times too slow leaves them only what leaks in — a
+    resampling's interpolation, a speed that wanders — which over hundreds of revolutions
+    stands far above noise (264 standard errors on a 56/28 pair read at half its speed on the
+    independent generator, development seed 1016: every day confirmed) but holds 2–3 % of the
+    multiples' content. On right angles (the tach's, development seeds 1000–1019 of
+    ``benchmarks/bench_tachless.py``) it was at least 0.63 on the project's simulator and 0.13 on
+    the independent generator (a 53/42 pair whose pinion pattern sits mostly at even orders).
+    """
+    if sums.count < 2:
+        return math.nan
+    average, variance, tested = _orders(sums, teeth)
+    excess = np.abs(average) ** 2 - variance / sums.count
+    k = np.arange(average.size)
+    on = float(np.sum(excess[tested & (k % m == 0)]))
+    off = float(np.sum(excess[tested & (k % m != 0)]))
+    return off / on if on > 0 else math.nan
 
 
 ROWS_PER_CHUNK_SAMPLES = 1 << 22
@@ -343,6 +372,8 @@ class PeriodCheck:
     max_residue_z: float = MAX_RESIDUE_Z
     mesh_family: dict[int, float] = field(default_factory=dict)
     """Per prime dividing the pinion's teeth: :func:`mesh_family_ratio`."""
+    unfolded_share: dict[int, float] = field(default_factory=dict)
+    """Per prime: :func:`unfolded_share` (on the wheel :attr:`unfolded` was read on)."""
     max_mesh_family_ratio: float = MAX_MESH_FAMILY_RATIO
 
     @property
@@ -373,7 +404,10 @@ class PeriodCheck:
         if not content or max(content.values()) < self.min_content_z:
             return None
         slow = {m: z for m, z in content.items() if z < self.min_content_z}
-        return Fraction(min(slow, key=lambda m: slow[m])) if slow else None
+        if slow:
+            return Fraction(min(slow, key=lambda m: slow[m]))
+        thin = {m: v for m, v in self.unfolded_share.items() if v < MIN_UNFOLDED_SHARE}
+        return Fraction(min(thin, key=lambda m: thin[m])) if thin else None
 
     @property
     def speed_factors(self) -> list[Fraction]:
@@ -408,37 +442,43 @@ def check_shaft_period(
     """Are the pinion revolutions (and the gear's, cut from them) true revolutions?
 
     For every prime ``m`` of ``moduli``: the pinion average's orders not divisible by ``m`` must
-    stand ``min_content_z`` above noise (:func:`unfolded_z`) — the gear's, when an angle slow by a
-    multiple of ``m`` would hold whole hunting periods (below) —, and the residue classes mod ``m``
+    stand ``min_content_z`` above noise (:func:`unfolded_z`) and hold a revolution's worth of
+    content (:func:`unfolded_share`) — the gear's, when ``m`` divides a small hunting number
+    (below) —, and the residue classes mod ``m``
     may differ by at most ``max_residue_z`` (:func:`residue_z`, the other wheel's pattern taken
     out): on the pinion's revolutions, and on the gear's unless ``m`` divides the gear's hunting
     number ``pinion_teeth / g`` (the larger of the two counts). A prime too large for the
     record's revolutions (a class left empty) is skipped above 5 and refuses below.
 
     Content that depends on which pair of teeth meets repeats every ``H = gear_teeth / g`` pinion
-    revolutions. An angle ``q`` times too slow, ``q`` a multiple of ``H``, sees it in every order
-    of its "revolution", so for a prime ``m`` whose smallest such ``q = lcm(m, H)`` is a ratio a
-    wrong harmonic can give (≤ :data:`MAX_HARMONIC_RATIO`) the pinion's orders cannot tell (a
-    63/18 pair, ``g = 9``, ``H = 2``, read at half its speed on the independent generator: 11
-    standard errors off the even orders, confirmed, every tooth number wrong). The gear's
-    revolutions can: the same content repeats every ``pinion_teeth / g`` of them, which ``m``
-    does not divide (the two hunting numbers are coprime). With a large ``H`` (38 on a 25/38
-    pair) the pinion's orders decide, as the gear's hold less content.
+    revolutions. An angle ``H`` times too slow sees it in every order of its "revolution" (one
+    ``q`` times too slow, ``q`` a multiple of ``H``, at the multiples of ``q/H``), so for a prime
+    ``m`` dividing ``H``, when ``H`` is a ratio a wrong harmonic can give (≤
+    :data:`MAX_HARMONIC_RATIO`), the pinion's orders cannot tell (a 63/18 pair, ``g = 9``, ``H =
+    2``, read at half its speed on the independent generator: 11 standard errors off the even
+    orders, confirmed, every tooth number wrong). The gear's revolutions can: the same content
+    repeats every ``pinion_teeth / g`` of them, which ``m`` does not divide (the two hunting
+    numbers are coprime). Otherwise the pinion's orders decide: the gear's hold less content
+    (on a 25/38 pair, ``H = 38``, they held 5–6 standard errors at half speed, one day 6.2).
     """
     common = math.gcd(pinion_teeth, gear_teeth)
     unfolded: dict[int, float] = {}
     residue: dict[int, float] = {}
     wheel: dict[int, str] = {}
     family: dict[int, float] = {}
+    share: dict[int, float] = {}
     problems: list[str] = []
     gear_average = None if gear is None or gear.count == 0 else gear.total / gear.count
     pinion_average = pinion.total / max(pinion.count, 1)
     for m in moduli:
-        if math.lcm(m, gear_teeth // common) <= MAX_HARMONIC_RATIO:  # see the note above
-            unfolded[m] = (math.nan if gear is None or gear.count < 2
-                           else unfolded_z(gear, gear_teeth, m))
+        hunting = gear_teeth // common
+        if hunting % m == 0 and hunting <= MAX_HARMONIC_RATIO:  # see the note above
+            if gear is None or gear.count < 2:
+                unfolded[m] = share[m] = math.nan
+            else:
+                unfolded[m], share[m] = unfolded_z(gear, gear_teeth, m), unfolded_share(gear, gear_teeth, m)
         else:
-            unfolded[m] = unfolded_z(pinion, pinion_teeth, m)
+            unfolded[m], share[m] = unfolded_z(pinion, pinion_teeth, m), unfolded_share(pinion, pinion_teeth, m)
         wheel[m], residue[m] = "pinion", residue_z(pinion, pinion_teeth, m, gear_average)
         if gear is not None and not (pinion_teeth // common) % m == 0:
             on_gear = residue_z(gear, gear_teeth, m, pinion_average)
@@ -449,6 +489,11 @@ def check_shaft_period(
                 f"the average's orders off multiples of {m} stand only {unfolded[m]:.1f} standard "
                 f"errors above noise (the angle may turn {m}× too slowly, or the record holds too "
                 "little tooth-specific vibration to tell)"
+            )
+        elif share[m] < MIN_UNFOLDED_SHARE:
+            problems.append(
+                f"the average's orders off multiples of {m} hold only {share[m]:.1%} of the content "
+                f"at its multiples: the angle turns {m}× too slowly"
             )
         if residue[m] > max_residue_z:
             problems.append(
@@ -467,4 +512,4 @@ def check_shaft_period(
                 )
     refusal = ("the shaft speed from the spectrum is not confirmed by the revolutions: "
                + "; ".join(problems)) if problems else ""
-    return PeriodCheck(refusal, unfolded, residue, wheel, min_content_z, max_residue_z, family)
+    return PeriodCheck(refusal, unfolded, residue, wheel, min_content_z, max_residue_z, family, share)

@@ -560,6 +560,8 @@ def _period_check_json(check: PeriodCheck) -> dict[str, Any]:
         "residue_z": {str(m): z(v) for m, v in check.residue.items()},
         "mesh_family_ratio": {str(m): round(v, 4) if math.isfinite(v) else None
                               for m, v in check.mesh_family.items()},
+        "unfolded_share": {str(m): round(v, 4) if math.isfinite(v) else None
+                           for m, v in check.unfolded_share.items()},
         "residue_wheel": {str(m): w for m, w in check.residue_wheel.items()},
     }
 

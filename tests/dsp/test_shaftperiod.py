@@ -13,6 +13,7 @@ from dsp.shaftperiod import (
     MAX_MESH_FAMILY_RATIO,
     MAX_RESIDUE_Z,
     MIN_CONTENT_Z,
+    MIN_UNFOLDED_SHARE,
     PeriodSumsAccumulator,
     check_shaft_period,
     residue_z,
@@ -120,6 +121,26 @@ def test_an_angle_too_fast_by_the_ratio_of_a_pair_is_refused_by_its_mesh_lines()
     assert fast.speed_factor == Fraction(1, 3)
     right = check(42, 14, 1.0)
     assert right.refusal == "" and right.mesh_family[3] < MAX_MESH_FAMILY_RATIO, right
+
+
+def test_a_slow_angle_whose_odd_orders_hold_only_leakage_is_refused() -> None:
+    # 56/28 read at half its speed over many revolutions: a little synchronous leakage into the
+    # odd orders (here 3 % of the amplitude) stands far above noise, but holds a few per cent
+    # of what the even orders hold (the independent generator's development seed 1016 was
+    # confirmed so, every day)
+    pinion, gear = revolutions(56, 28, 0.5, revs=200, noise=0.05)
+    n = pinion.shape[1]
+    pinion = pinion + 0.03 * np.cos(2 * np.pi * 3 * np.arange(n) / n)
+    a = PeriodSumsAccumulator(n)
+    a.add(pinion, np.arange(pinion.shape[0]))
+    b = PeriodSumsAccumulator(gear.shape[1])
+    b.add(gear, np.arange(gear.shape[0]))
+    slow = check_shaft_period(a.result(), b.result(), 56, 28)
+    assert slow.unfolded[2] >= MIN_CONTENT_Z  # the premise: significant, so z alone passes
+    assert slow.unfolded_share[2] < MIN_UNFOLDED_SHARE
+    assert "hold only" in slow.refusal and slow.speed_factor == 2
+    right = check(56, 28, 1.0)
+    assert right.refusal == "" and right.unfolded_share[2] > 5 * MIN_UNFOLDED_SHARE, right
 
 
 def test_noise_alone_cannot_confirm_anything() -> None:
