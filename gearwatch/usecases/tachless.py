@@ -7,6 +7,8 @@ record whose tach channel is dead:
    mesh harmonic (:func:`dsp.tachless.tachless_shaft_angle`), on the accelerometer channel and
    harmonic that give the steadiest pulses; the refusal reasons of :mod:`dsp.tachless` when
    none does. The speed comes from ``[rig] nominal_pinion_rpm`` when given, else from the
+   campaign's reference (the speed of its latest record numbered in its frame,
+   :func:`fold_reference`), else from the
    comb of the spectrum's lines, checked against both shafts (the comb often locks on the
    other wheel's shaft); such a speed is then checked and corrected by the angle's own
    revolutions (:mod:`dsp.shaftperiod`, :mod:`gearwatch.usecases.shaft_angle`), and a
