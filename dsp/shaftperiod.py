@@ -296,10 +296,10 @@ MAX_MESH_FAMILY_RATIO = 1.0
 """A line standing at an order where the mesh's own harmonics would sit if the angle turned
 ``m`` times too fast (``(Z/m)·j``, not a multiple of ``Z``) may hold at most the strongest mesh
 harmonic's power (:func:`mesh_family_ratio`). Measured on right angles (the tach's, development
-seeds 1000–1019 of ``benchmarks/bench_tachless.py``, 8 days each): at most 0.45 on the project's
-simulator (a 26-tooth pinion's orders 6–24, a 22-tooth one's 6–20), 0.14 on the independent
-generator; on the angles 3 times too fast that were confirmed before (independent seed 9874),
-2.1–2.7 every day."""
+seeds 1000–1019 of ``benchmarks/bench_tachless.py``, 8 days each, every factor 2–16): at most
+0.61 on the project's simulator (a 36/27 pair's orders 9·j), 0.17 on the independent generator;
+on the angles 3 times too fast that were confirmed before (independent seed 9874), 2.1–2.7
+every day, and 2.7 on the one 4 times too fast (seed 9954)."""
 MIN_FAMILY_ORDER = 5
 """Shaft orders below this are left out of :func:`mesh_family_ratio`: runout and misalignment
 lines, often stronger than the mesh on a real rig."""
@@ -371,7 +371,7 @@ class PeriodCheck:
     min_content_z: float = MIN_CONTENT_Z
     max_residue_z: float = MAX_RESIDUE_Z
     mesh_family: dict[int, float] = field(default_factory=dict)
-    """Per prime dividing the pinion's teeth: :func:`mesh_family_ratio`."""
+    """Per factor 2–:data:`MAX_HARMONIC_RATIO` dividing the pinion's teeth: :func:`mesh_family_ratio`."""
     unfolded_share: dict[int, float] = field(default_factory=dict)
     """Per prime: :func:`unfolded_share` (on the wheel :attr:`unfolded` was read on)."""
     max_mesh_family_ratio: float = MAX_MESH_FAMILY_RATIO
@@ -502,13 +502,17 @@ def check_shaft_period(
             )
         elif math.isnan(residue[m]) and m <= 5:
             problems.append(f"too few {wheel[m]} revolutions to check the period against {m}")
-        if pinion_teeth % m == 0:
-            family[m] = mesh_family_ratio(pinion, pinion_teeth, m, gear_teeth)
-            if family[m] > MAX_MESH_FAMILY_RATIO:
+    # every whole ratio a wrong harmonic can give, not only primes: a 76-tooth pinion read 4×
+    # too fast has its true mesh at orders 19·j, of which the prime 2's family (38·j) holds
+    # only the even harmonics (held-out seed 9954 of the independent generator)
+    for factor in range(2, MAX_HARMONIC_RATIO + 1):
+        if pinion_teeth % factor == 0:
+            family[factor] = mesh_family_ratio(pinion, pinion_teeth, factor, gear_teeth)
+            if family[factor] > MAX_MESH_FAMILY_RATIO:
                 problems.append(
-                    f"a line at an order of {pinion_teeth // m}·j holds {family[m]:.2f} of the strongest "
-                    f"mesh harmonic's power: the mesh's own harmonics sit there when the angle turns "
-                    f"{m}× too fast"
+                    f"a line at an order of {pinion_teeth // factor}·j holds {family[factor]:.2f} of the "
+                    f"strongest mesh harmonic's power: the mesh's own harmonics sit there when the "
+                    f"angle turns {factor}× too fast"
                 )
     refusal = ("the shaft speed from the spectrum is not confirmed by the revolutions: "
                + "; ".join(problems)) if problems else ""

@@ -547,9 +547,9 @@ def _grids(
 def _period_check_json(check: PeriodCheck) -> dict[str, Any]:
     """The speed check of a spectrum-speed record for ``tooth_frame.period_check``: per prime,
     how far the average's orders off its multiples stand above noise and how much the residue
-    classes differ (standard errors), and on which wheel that was tested; per prime dividing the
-    pinion's teeth, the strongest line where the mesh would sit were the angle that much too
-    fast, against the strongest mesh harmonic (:func:`dsp.shaftperiod.mesh_family_ratio`)."""
+    classes differ (standard errors), and on which wheel that was tested; per factor 2–16
+    dividing the pinion's teeth, the strongest line where the mesh would sit were the angle that
+    much too fast, against the strongest mesh harmonic (:func:`dsp.shaftperiod.mesh_family_ratio`)."""
 
     def z(value: float) -> float | None:
         return round(value, 2) if math.isfinite(value) else None

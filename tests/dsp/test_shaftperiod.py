@@ -123,6 +123,17 @@ def test_an_angle_too_fast_by_the_ratio_of_a_pair_is_refused_by_its_mesh_lines()
     assert right.refusal == "" and right.mesh_family[3] < MAX_MESH_FAMILY_RATIO, right
 
 
+def test_an_angle_too_fast_by_a_composite_ratio_is_refused_by_its_mesh_lines() -> None:
+    # 76/25 read 4 times too fast, both wheels' patterns under the noise: the true mesh sits at
+    # order 19, off the prime 2's family (38·j) — every ratio up to 16 is looked at (the
+    # independent generator's held-out seed 9954 founded its campaign so)
+    fast = check(76, 25, 4.0, pinion_level=0.02, gear_level=0.02)
+    assert max(fast.residue.values()) < MAX_RESIDUE_Z  # the premise: the classes do not tell
+    assert fast.mesh_family[2] < MAX_MESH_FAMILY_RATIO < fast.mesh_family[4]
+    assert "4× too fast" in fast.refusal and fast.speed_factor == Fraction(1, 4)
+    assert check(76, 25, 1.0).refusal == ""
+
+
 def test_a_slow_angle_whose_odd_orders_hold_only_leakage_is_refused() -> None:
     # 56/28 read at half its speed over many revolutions: a little synchronous leakage into the
     # odd orders (here 3 % of the amplitude) stands far above noise, but holds a few per cent
