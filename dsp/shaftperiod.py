@@ -374,7 +374,6 @@ class PeriodCheck:
     """Per factor 2–:data:`MAX_HARMONIC_RATIO` dividing the pinion's teeth: :func:`mesh_family_ratio`."""
     unfolded_share: dict[int, float] = field(default_factory=dict)
     """Per prime: :func:`unfolded_share` (on the wheel :attr:`unfolded` was read on)."""
-    max_mesh_family_ratio: float = MAX_MESH_FAMILY_RATIO
 
     @property
     def speed_factor(self) -> Fraction | None:
@@ -397,7 +396,7 @@ class PeriodCheck:
         fast = {m: z for m, z in self.residue.items() if z > self.max_residue_z}
         if fast:
             return Fraction(1, max(fast, key=lambda m: fast[m]))
-        lines = {m: r for m, r in self.mesh_family.items() if r > self.max_mesh_family_ratio}
+        lines = {m: r for m, r in self.mesh_family.items() if r > MAX_MESH_FAMILY_RATIO}
         if lines:
             return Fraction(1, max(lines, key=lambda m: lines[m]))
         content = {m: z for m, z in self.unfolded.items() if math.isfinite(z)}
@@ -470,8 +469,8 @@ def check_shaft_period(
     problems: list[str] = []
     gear_average = None if gear is None or gear.count == 0 else gear.total / gear.count
     pinion_average = pinion.total / max(pinion.count, 1)
+    hunting = gear_teeth // common  # pinion revolutions until the same pair of teeth meets again
     for m in moduli:
-        hunting = gear_teeth // common
         if hunting % m == 0 and hunting <= MAX_HARMONIC_RATIO:  # see the note above
             if gear is None or gear.count < 2:
                 unfolded[m] = share[m] = math.nan

@@ -114,10 +114,7 @@ def record_shaft_angle(
     elif isinstance(mesh, str):
         mesh = _without_the_hint(mesh, record_signals)
     else:
-        mesh = _hint_checked(mesh, record_signals, hint_source)
-        if hint_source == CAMPAIGN_SPEED and mesh.summary["speed_from"] == NOMINAL_SPEED:
-            mesh = MeshPhaseAngle(mesh.tach, {**mesh.summary, "speed_from": CAMPAIGN_SPEED,
-                                              "campaign_speed_rpm": hint_rpm})
+        mesh = _hint_checked(mesh, record_signals, hint_source, hint_rpm)
     if isinstance(mesh, str):
         return f"no shaft angle: {tach_failure}; mesh phase: {mesh}"
     return ShaftAngle(
@@ -244,10 +241,13 @@ def _without_the_hint(
 def _hint_checked(
     mesh: MeshPhaseAngle,
     record: _MeshRecord,
-    hint_source: str = NOMINAL_SPEED,
+    hint_source: str,
+    hint_rpm: float,
 ) -> MeshPhaseAngle:
-    """An angle found near ``nominal_pinion_rpm``, replaced only when its revolutions show it a
-    whole ratio off *and* the corrected angle's revolutions are confirmed.
+    """An angle found near the hint (``nominal_pinion_rpm`` or the campaign's speed,
+    ``hint_source``), replaced only when its revolutions show it a whole ratio off *and* the
+    corrected angle's revolutions are confirmed; ``speed_from`` says which hint, and whether it
+    was overruled.
 
     Within ±20 % of a right hint the angle is right; a hint that is wrong that day by more (the
     rig run at another speed) lets the search lock on another mesh harmonic, e.g. 1.5× or 2× the
@@ -256,6 +256,9 @@ def _hint_checked(
     once per hunting period (docs/tachless.md), and the hint is then trusted as before."""
     corrected, confirmed = _speed_corrected_by_revolutions(mesh, record)
     if not confirmed or corrected is mesh:
+        if hint_source == CAMPAIGN_SPEED:  # mesh_phase_angle calls every hint the nominal speed
+            return MeshPhaseAngle(mesh.tach, {**mesh.summary, "speed_from": CAMPAIGN_SPEED,
+                                              "campaign_speed_rpm": hint_rpm})
         return mesh
     summary = {key: value for key, value in corrected.summary.items() if key != "spectrum_speed_rpm"}
     return MeshPhaseAngle(corrected.tach, {
