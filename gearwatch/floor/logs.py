@@ -15,7 +15,10 @@ import os
 import sys
 
 LIBRARY_LOGGERS = ("nptdms", "h5py", "can", "cantools", "py.warnings", "numba", "matplotlib",
-                   "asyncio")
+                   "asyncio", "psycopg")
+"""psycopg warns "error ignored terminating <Pipeline [BAD]>: the connection is lost" when the
+database goes away mid-command, before gearwatch's own one-line "database unavailable" error
+(seen once in CI, 2026-11-28: ``tests/gearwatch/test_faults.py``)."""
 MAX_LINE_CHARS = 500
 _library_level: int | None = None
 """Below it, library records are dropped by :class:`OneLineHandler` (``None``: not configured)."""

@@ -76,6 +76,8 @@ def test_warnings_and_library_records_are_routed_and_one_line(
             np.array([1e300]) ** 2  # numpy: overflow RuntimeWarning
         logging.getLogger("h5py._conv").warning("noise")
         logging.getLogger("can.interfaces").warning("more noise")
+        logging.getLogger("psycopg").warning(  # a lost connection, before gearwatch's error
+            "error ignored terminating <psycopg.Pipeline [BAD]>: the connection is lost")
         logging.getLogger("gearwatch.test").warning("multi\nline " + "x" * 2000)
         err = capsys.readouterr().err
         lines = err.splitlines()
