@@ -551,17 +551,15 @@ def _period_check_json(check: PeriodCheck) -> dict[str, Any]:
     dividing the pinion's teeth, the strongest line where the mesh would sit were the angle that
     much too fast, against the strongest mesh harmonic (:func:`dsp.shaftperiod.mesh_family_ratio`)."""
 
-    def z(value: float) -> float | None:
-        return round(value, 2) if math.isfinite(value) else None
+    def finite(values: Mapping[int, float], digits: int) -> dict[str, float | None]:
+        return {str(m): round(v, digits) if math.isfinite(v) else None for m, v in values.items()}
 
     return {
         "confirmed": not check.refusal,
-        "unfolded_z": {str(m): z(v) for m, v in check.unfolded.items()},
-        "residue_z": {str(m): z(v) for m, v in check.residue.items()},
-        "mesh_family_ratio": {str(m): round(v, 4) if math.isfinite(v) else None
-                              for m, v in check.mesh_family.items()},
-        "unfolded_share": {str(m): round(v, 4) if math.isfinite(v) else None
-                           for m, v in check.unfolded_share.items()},
+        "unfolded_z": finite(check.unfolded, 2),
+        "residue_z": finite(check.residue, 2),
+        "mesh_family_ratio": finite(check.mesh_family, 4),
+        "unfolded_share": finite(check.unfolded_share, 4),
         "residue_wheel": {str(m): w for m, w in check.residue_wheel.items()},
     }
 
