@@ -14,14 +14,19 @@ This module
    canonical averages of one wheel then differ by whole mesh periods only;
 2. extracts the fingerprint (:func:`tooth_fingerprint`): the canonical average without order 0
    and the mesh harmonics, sectors with an outlying energy (a spall) damped to the median
-   sector energy so that one damaged tooth cannot dominate the match, unit RMS;
+   sector energy so that one damaged tooth cannot dominate the match, unit RMS (the mesh
+   waveform removed is estimated with the loud sectors weighted down, so a spall stays in
+   its own sectors);
 3. finds the whole-tooth shift between two fingerprints by circular cross-correlation and
    refuses when it is not clear (:func:`align_fingerprint`): the best correlation must reach
    :data:`MIN_CORRELATION` and fit better than every other whole-tooth shift by
    :data:`MIN_SEPARATION_Z` standard errors (:func:`shift_separation_z`) — or by
    :data:`MIN_CONFIRMED_SEPARATION_Z` when a second, largely independent piece of evidence
    points to the same shift: the pattern of how much each tooth deviates
-   (:func:`tooth_energy_pattern`, :func:`sector_pattern_z`).
+   (:func:`tooth_energy_pattern`, :func:`sector_pattern_z`);
+4. can leave the record's loudest tooth and its ringing out of both tests
+   (:func:`loud_sectors`, ``align_fingerprint(..., left_out_sectors=…)``): the caller's second
+   attempt on a refused day, when a grown spall reshapes its own sectors.
 
 Everything here is pure: arrays in, arrays and frozen dataclasses out. Shifts are *delays*:
 ``circular_shift(x, d)[n] = x[n − d]`` (fractional ``d`` by the Fourier shift theorem, exact for
@@ -58,6 +63,7 @@ __all__ = [
     "FrameAlignment",
     "align_fingerprint",
     "circular_shift",
+    "loud_sectors",
     "mesh_phase_position",
     "resample_periodic",
     "sector_pattern_z",
@@ -100,6 +106,12 @@ SEARCH_REACH_TEETH = 0.25
 OUTLIER_SECTOR_ENERGY_RATIO = 4.0
 """A tooth sector whose fingerprint energy exceeds this × the median sector energy is scaled
 down to the median (a spall, a glitch): one tooth must not carry the match."""
+LEFT_OUT_BEFORE = 1
+"""Sectors before the loudest one that a second alignment attempt leaves out (:func:`loud_sectors`)."""
+LEFT_OUT_AFTER = 2
+"""…and after it: a ringing transfer path carries the impact into the next teeth."""
+MAX_LEFT_OUT_FRACTION = 0.25
+"""At most this fraction of the teeth is left out; otherwise nothing is."""
 
 
 @dataclass(frozen=True)
@@ -134,6 +146,8 @@ class FrameAlignment:
     confirmed_by_sector_pattern : bool
         True when the shift was accepted on :data:`MIN_CONFIRMED_SEPARATION_Z` with that
         pattern's confirmation rather than on :data:`MIN_SEPARATION_Z` alone.
+    left_out_sectors : tuple of int
+        The record's tooth sectors (canonical numbering) both tests left out (:func:`loud_sectors`).
     """
 
     shift_teeth: int | None
@@ -146,6 +160,7 @@ class FrameAlignment:
     candidate_teeth: int = 0
     sector_pattern_z: float = 0.0
     confirmed_by_sector_pattern: bool = False
+    left_out_sectors: tuple[int, ...] = ()
 
 
 def _checked(average: ArrayLike, teeth: int) -> FloatArray:
@@ -218,11 +233,35 @@ def mesh_phase_position(average: ArrayLike, teeth: int) -> float:
     return float((-np.angle(coefficient) / (2.0 * np.pi)) % 1.0 * per_tooth)
 
 
+def _tooth_deviations(x: FloatArray, teeth: int) -> tuple[FloatArray, FloatArray]:
+    """Each tooth sector of the canonical average minus the mesh waveform, and its energy.
+
+    The mesh waveform (order 0 and every mesh harmonic: what every tooth shares) is the mean
+    of the sectors, weighted down where a sector is loud (above
+    :data:`OUTLIER_SECTOR_ENERGY_RATIO` × the median energy, weight ratio/its energy): the plain
+    mean would carry 1/teeth of a spall's impact into every other sector, and a grown spall
+    would then reshape the whole fingerprint. The weight falls smoothly, so a tooth near the
+    threshold does not flip the fingerprint between days.
+    """
+    canonical = circular_shift(x, -mesh_phase_position(x, teeth))
+    sectors = canonical.reshape(teeth, -1)
+    deviations = sectors - sectors.mean(axis=0)
+    energy = np.mean(deviations**2, axis=1)
+    median = float(np.median(energy))
+    loud = energy > OUTLIER_SECTOR_ENERGY_RATIO * median
+    if median > 0.0 and loud.any():
+        weight = np.minimum(1.0, OUTLIER_SECTOR_ENERGY_RATIO * median / energy)
+        deviations = sectors - weight @ sectors / weight.sum()
+        energy = np.mean(deviations**2, axis=1)
+    return deviations, energy
+
+
 def tooth_fingerprint(average: ArrayLike, teeth: int) -> FloatArray:
     """The tooth-specific pattern of a synchronous average, canonical, unit RMS.
 
     The average is moved to its canonical position (:func:`mesh_phase_position`), order 0 and
-    every mesh harmonic are removed (they are the same for every tooth), and each tooth sector
+    every mesh harmonic are removed (they are the same for every tooth; estimated without the
+    loud sectors' weight, :func:`_tooth_deviations`), and each tooth sector
     whose energy exceeds :data:`OUTLIER_SECTOR_ENERGY_RATIO` × the median sector energy is
     scaled down to the median: a spall that grows from day to day changes one sector, and must
     not outweigh the rest of the pattern. A fingerprint with no energy left (a perfectly
@@ -236,13 +275,7 @@ def tooth_fingerprint(average: ArrayLike, teeth: int) -> FloatArray:
     1.0
     """
     x = _checked(average, teeth)
-    canonical = circular_shift(x, -mesh_phase_position(x, teeth))
-    spectrum = np.fft.rfft(canonical)
-    spectrum[0] = 0.0
-    spectrum[teeth::teeth] = 0.0
-    pattern = np.fft.irfft(spectrum, n=x.size)
-    sectors = pattern.reshape(teeth, -1)
-    energy = np.mean(sectors**2, axis=1)
+    sectors, energy = _tooth_deviations(x, teeth)
     median = float(np.median(energy))
     if median > 0.0:
         loud = energy > OUTLIER_SECTOR_ENERGY_RATIO * median
@@ -252,6 +285,40 @@ def tooth_fingerprint(average: ArrayLike, teeth: int) -> FloatArray:
     # rounding residue of a perfectly regular average is no pattern
     regular = rms <= 1e-9 * float(np.sqrt(np.mean(x**2)))
     return np.asarray(np.zeros_like(pattern) if regular else pattern / rms, dtype=np.float64)
+
+
+def loud_sectors(average: ArrayLike, teeth: int) -> NDArray[np.bool_]:
+    """Tooth sectors of a canonical fingerprint to leave out of a second alignment attempt.
+
+    The loudest sector, when its energy (before :func:`tooth_fingerprint` damps it) exceeds
+    :data:`OUTLIER_SECTOR_ENERGY_RATIO` × the median sector energy, with
+    :data:`LEFT_OUT_BEFORE` sector before and :data:`LEFT_OUT_AFTER` after it (a ringing
+    transfer path carries a tooth's impact into the next sectors). Only the loudest: a spall is
+    one tooth, and a healthy wheel's loud teeth are its fingerprint. All False when there is no
+    such sector or when that would leave out more than :data:`MAX_LEFT_OUT_FRACTION` of the
+    teeth (a wheel that small has too little pattern left).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.cos(2 * np.pi * 16 * np.arange(128) / 128) + 0.01 * np.sin(np.arange(128))
+    >>> x[42] += 3.0                                  # sector 5 of 16 (samples 40–47)
+    >>> np.flatnonzero(loud_sectors(x, 16)).tolist()
+    [4, 5, 6, 7]
+    """
+    x = _checked(average, teeth)
+    _, energy = _tooth_deviations(x, teeth)
+    median = float(np.median(energy))
+    left_out = np.zeros(teeth, dtype=bool)
+    # rounding residue of a perfectly regular average has no loud tooth
+    if not median > 1e-18 * float(np.mean(x**2)):
+        return left_out
+    loudest = int(np.argmax(energy))
+    if energy[loudest] > OUTLIER_SECTOR_ENERGY_RATIO * median:
+        left_out[np.arange(loudest - LEFT_OUT_BEFORE, loudest + LEFT_OUT_AFTER + 1) % teeth] = True
+    if left_out.sum() > MAX_LEFT_OUT_FRACTION * teeth:
+        left_out[:] = False
+    return left_out
 
 
 def align_fingerprint(
@@ -264,6 +331,7 @@ def align_fingerprint(
     min_confirmed_separation_z: float = MIN_CONFIRMED_SEPARATION_Z,
     min_sector_pattern_z: float = MIN_SECTOR_PATTERN_Z,
     no_confirmation_reason: str = "",
+    left_out_sectors: ArrayLike | None = None,
 ) -> FrameAlignment:
     """Whole-tooth shift that lines a record's fingerprint up with the reference's.
 
@@ -293,6 +361,10 @@ def align_fingerprint(
     """
     fp = _checked(fingerprint, teeth)
     ref = resample_periodic(_checked(reference, teeth), fp.size)
+    left_out = np.zeros(teeth, dtype=bool) if left_out_sectors is None else np.asarray(left_out_sectors, dtype=bool)
+    keep = None if not left_out.any() else np.repeat(~left_out, fp.size // teeth)
+    if keep is not None:
+        fp = fp * keep
     norm = float(np.linalg.norm(fp) * np.linalg.norm(ref))
     if not norm > 0.0:
         return FrameAlignment(None, 0.0, 0.0, 0.0,
@@ -312,15 +384,18 @@ def align_fingerprint(
     margin = correlation - runner_up
     others = [j for j in range(teeth) if j != best]
     other_delays = [(j * per_tooth - reach + int(np.argmax(windows[j]))) % fp.size for j in others]
-    separations = shift_separation_z(fp, ref, int(delay), other_delays, teeth) if others else np.array([math.inf])
+    separations = (shift_separation_z(fp, ref, int(delay), other_delays, teeth, keep=keep)
+                   if others else np.array([math.inf]))
     z = float(separations.min())
-    sector_z = sector_pattern_z(fp, ref, teeth, int(delay), best)
+    sector_z = sector_pattern_z(fp, ref, teeth, int(delay), best, left_out=left_out)
+    left_out_list = tuple(int(j) for j in np.flatnonzero(left_out))
     if correlation < min_correlation:
         return FrameAlignment(
             None, correlation, runner_up, margin,
             f"the tooth pattern does not match the reference: best correlation {correlation:.2f} "
             f"(shift {best} teeth) < {min_correlation:.2f}",
             delay_samples=int(delay), separation_z=z, candidate_teeth=best, sector_pattern_z=sector_z,
+            left_out_sectors=left_out_list,
         )
     confirmed = (not no_confirmation_reason and z >= min_confirmed_separation_z
                  and sector_z >= min_sector_pattern_z)
@@ -338,10 +413,12 @@ def align_fingerprint(
             f"{closest} by only {z:.1f} standard errors (< {min_separation_z:g}, {other_rule}; "
             f"correlation margin over the runner-up {margin:.2f})",
             delay_samples=int(delay), separation_z=z, candidate_teeth=best, sector_pattern_z=sector_z,
+            left_out_sectors=left_out_list,
         )
     return FrameAlignment(best, correlation, runner_up, margin, delay_samples=int(delay),
                           separation_z=z, candidate_teeth=best, sector_pattern_z=sector_z,
-                          confirmed_by_sector_pattern=z < min_separation_z)
+                          confirmed_by_sector_pattern=z < min_separation_z,
+                          left_out_sectors=left_out_list)
 
 
 def tooth_energy_pattern(fingerprint: ArrayLike, teeth: int) -> FloatArray:
@@ -369,7 +446,8 @@ def tooth_energy_pattern(fingerprint: ArrayLike, teeth: int) -> FloatArray:
 
 
 def sector_pattern_z(
-    fingerprint: ArrayLike, reference: ArrayLike, teeth: int, delay_samples: int, shift_teeth: int
+    fingerprint: ArrayLike, reference: ArrayLike, teeth: int, delay_samples: int, shift_teeth: int,
+    *, left_out: ArrayLike | None = None,
 ) -> float:
     """Support of the per-tooth energy pattern for whole-tooth shift ``shift_teeth``.
 
@@ -400,6 +478,12 @@ def sector_pattern_z(
     per_tooth = n // teeth
     beyond = (int(delay_samples) - int(shift_teeth) * per_tooth + n // 2) % n - n // 2
     record_pattern = tooth_energy_pattern(np.roll(fp, -beyond), teeth)
+    if left_out is not None and np.any(left_out):
+        # the record's own sectors left out: standardised over the rest, 0 (no vote) where left out
+        kept = ~np.asarray(left_out, dtype=bool)
+        log_energy = np.log(np.mean(np.roll(fp, -beyond).reshape(teeth, -1) ** 2, axis=1) + 1e-300)
+        spread = float(np.std(log_energy[kept]))
+        record_pattern = np.where(kept, (log_energy - log_energy[kept].mean()) / spread, 0.0) if spread > 0 else np.zeros(teeth)
     reference_pattern = tooth_energy_pattern(ref, teeth)
     # scores[k] = mean_j record[j]·reference[j − k]: the record is the reference k teeth later
     scores = np.fft.irfft(np.fft.rfft(record_pattern) * np.conj(np.fft.rfft(reference_pattern)), n=teeth) / teeth
@@ -412,7 +496,8 @@ def sector_pattern_z(
 
 
 def shift_separation_z(
-    fingerprint: ArrayLike, reference: ArrayLike, best_delay: int, other_delays: ArrayLike, teeth: int
+    fingerprint: ArrayLike, reference: ArrayLike, best_delay: int, other_delays: ArrayLike, teeth: int,
+    *, keep: ArrayLike | None = None,
 ) -> FloatArray:
     """Standard errors by which ``best_delay`` fits the record better than each other delay.
 
@@ -449,6 +534,8 @@ def shift_separation_z(
     """
     f = np.asarray(fingerprint, dtype=np.float64)
     r = resample_periodic(np.asarray(reference, dtype=np.float64), f.size)
+    if keep is not None:
+        return _masked_separation_z(f, r, best_delay, other_delays, teeth, np.asarray(keep, dtype=bool))
     n = f.size
     big_f, big_r = np.fft.rfft(f), np.fft.rfft(r)
     k = np.arange(big_f.size)
@@ -471,6 +558,46 @@ def shift_separation_z(
         difference = at_best - big_r * np.exp(-2j * np.pi * k * other / n)
         evidence = float(np.sum(weight * (big_f * np.conj(difference)).real))
         variance = float(np.sum(weight**2 * noise * np.abs(difference) ** 2) / 2.0)
+        z.append(evidence / math.sqrt(variance) if variance > 0.0 else math.inf)
+    return np.asarray(z, dtype=np.float64)
+
+
+def _smoothed_noise(power: FloatArray, teeth: int, floor: float) -> FloatArray:
+    width = max(3, int(teeth) | 1)
+    smooth = np.convolve(np.pad(power, width // 2, mode="reflect"), np.ones(width) / width, mode="valid")
+    return np.asarray(smooth + floor + 1e-300, dtype=np.float64)
+
+
+def _masked_separation_z(
+    f: FloatArray, r: FloatArray, best_delay: int, other_delays: ArrayLike, teeth: int, keep: NDArray[np.bool_]
+) -> FloatArray:
+    """:func:`shift_separation_z` over the kept samples only (the rest left out of the fit).
+
+    Each shifted reference is masked like the record, so the fits' residual energies differ by
+    ``2α⟨f, g_d − g_d'⟩ − α²(‖g_d‖² − ‖g_d'‖²)`` (no longer the first term alone); the noise
+    per order is the masked residual's, divided by the kept fraction.
+    """
+    n = f.size
+    w = keep.astype(np.float64)
+    fraction = float(w.mean())
+    weight = np.full(n // 2 + 1, 2.0)
+    weight[0] = 1.0
+    if n % 2 == 0:
+        weight[-1] = 1.0
+    g_best = w * circular_shift(r, int(best_delay))
+    energy_best = float(g_best @ g_best)
+    masked = w * f
+    if not (energy_best > 0.0 and fraction > 0.0):
+        return np.zeros(np.size(other_delays))
+    alpha = float(masked @ g_best) / energy_best
+    residual = np.abs(np.fft.rfft(masked - alpha * g_best)) ** 2 / fraction
+    noise = _smoothed_noise(residual, teeth, 1e-12 * float(np.mean(np.abs(np.fft.rfft(masked)) ** 2)) / fraction)
+    z = []
+    for other in np.atleast_1d(np.asarray(other_delays, dtype=np.float64)):
+        g_other = w * circular_shift(r, float(other))
+        difference = g_best - g_other
+        evidence = n * (float(masked @ difference) - 0.5 * alpha * (energy_best - float(g_other @ g_other)))
+        variance = float(np.sum(weight**2 * noise * np.abs(np.fft.rfft(difference)) ** 2) / 2.0)
         z.append(evidence / math.sqrt(variance) if variance > 0.0 else math.inf)
     return np.asarray(z, dtype=np.float64)
 

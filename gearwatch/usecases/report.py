@@ -88,6 +88,9 @@ def angle_and_frame(quality: dict[str, Any]) -> str:
     ...     "reference_frame": "mesh_phase", "pinion": {"separation_z": 2.04,
     ...     "confirmed_by_sector_pattern": True}}}})
     "mesh phase; campaign's tach-less frame (2.0 SE + tooth energy pattern)"
+    >>> angle_and_frame({"angle_source": "mesh_phase", "tooth_frames": {"a1": {"kind": "campaign",
+    ...     "reference_frame": "mesh_phase", "pinion": {"separation_z": 3.61, "left_out_sectors": [4, 5, 6, 7]}}}})
+    "mesh phase; campaign's tach-less frame (3.6 SE without 4 loud teeth)"
     >>> angle_and_frame({"angle_source": "mesh_phase", "tooth_frames": {
     ...     "a1": {"kind": "refused"}, "a2": {"kind": "campaign", "reference_frame": "mesh_phase"}}})
     "mesh phase; campaign's tach-less frame on 1 of 2 channels (not on a1)"
@@ -121,6 +124,8 @@ def angle_and_frame(quality: dict[str, Any]) -> str:
     pinion = frame.get("pinion") or {}
     z = pinion.get("separation_z")
     support = " + tooth energy pattern" if pinion.get("confirmed_by_sector_pattern") else ""
+    if pinion.get("left_out_sectors"):
+        support += f" without {len(pinion['left_out_sectors'])} loud teeth"
     return f"mesh phase; {anchor}" + (f" ({float(z):.1f} SE{support})" if isinstance(z, int | float) else "")
 
 

@@ -55,6 +55,7 @@ from dsp.toothframe import (
     align_fingerprint,
     circular_shift,
     frame_delay_samples,
+    loud_sectors,
     mesh_phase_position,
     resample_periodic,
     tooth_fingerprint,
@@ -415,6 +416,8 @@ def _alignment_json(alignment: Any) -> dict[str, Any]:
         # and whether the shift needed it (accepted below 3.5 standard errors)
         "sector_pattern_z": round(float(alignment.sector_pattern_z), 2),
         "confirmed_by_sector_pattern": bool(alignment.confirmed_by_sector_pattern),
+        # the record's loud tooth sectors (and their ringing) left out of a second attempt
+        "left_out_sectors": list(alignment.left_out_sectors),
     }
 
 
@@ -486,6 +489,15 @@ def place_in_tooth_frame(
     )
     alignment = align_fingerprint(fingerprint, reference_canonical, pinion_teeth,
                                   no_confirmation_reason=placement.unsteady_angle)
+    left_out = loud_sectors(pinion_average, pinion_teeth)
+    if alignment.shift_teeth is None and left_out.any():
+        # a grown spall (and its ringing) reshapes its own sectors: the rest of the pattern may
+        # still say where the teeth are
+        retry = align_fingerprint(fingerprint, reference_canonical, pinion_teeth,
+                                  no_confirmation_reason=placement.unsteady_angle,
+                                  left_out_sectors=left_out)
+        if retry.shift_teeth is not None:
+            alignment = retry
     frame: dict[str, Any] = {
         "reference_frame": reference.frame,
         "reference_sha256": reference.record_sha256,

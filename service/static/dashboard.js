@@ -142,7 +142,8 @@ function frameText(q) {
   if (f.kind === "own") return "angle from the mesh phase; tooth numbers in the record's own frame";
   const anchor = f.reference_frame === "tachometer" ? "the tach days' numbering" : "the campaign's tach-less frame";
   const z = f.pinion && Number.isFinite(f.pinion.separation_z)
-    ? `, ${f.pinion.separation_z.toFixed(1)} SE clear${f.pinion.confirmed_by_sector_pattern ? " + tooth energy pattern" : ""}` : "";
+    ? `, ${f.pinion.separation_z.toFixed(1)} SE clear${f.pinion.confirmed_by_sector_pattern ? " + tooth energy pattern" : ""}`
+      + ((f.pinion.left_out_sectors || []).length ? ` without ${f.pinion.left_out_sectors.length} loud teeth` : "") : "";
   return `angle from the mesh phase; teeth in ${anchor}${f.founds_reference ? " (founds it)" : z}`;
 }
 
