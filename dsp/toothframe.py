@@ -539,20 +539,14 @@ def shift_separation_z(
     n = f.size
     big_f, big_r = np.fft.rfft(f), np.fft.rfft(r)
     k = np.arange(big_f.size)
-    weight = np.full(big_f.size, 2.0)
-    weight[0] = 1.0
-    if n % 2 == 0:
-        weight[-1] = 1.0
+    weight = _rfft_weights(n)
     energy = float(np.sum(weight * np.abs(big_r) ** 2))
     if not energy > 0.0:
         return np.zeros(np.size(other_delays))
     at_best = big_r * np.exp(-2j * np.pi * k * best_delay / n)
     alpha = float(np.sum(weight * (big_f * np.conj(at_best)).real)) / energy
     residual = np.abs(big_f - alpha * at_best) ** 2
-    width = max(3, int(teeth) | 1)
-    noise = np.convolve(np.pad(residual, width // 2, mode="reflect"), np.ones(width) / width, mode="valid")
-    # a floor (1e-12 of the record's mean power per order): an exact copy gives a large, finite z
-    noise = noise + 1e-12 * float(np.mean(np.abs(big_f) ** 2)) + 1e-300
+    noise = _smoothed_noise(residual, teeth, 1e-12 * float(np.mean(np.abs(big_f) ** 2)))
     z = []
     for other in np.atleast_1d(np.asarray(other_delays, dtype=np.float64)):
         difference = at_best - big_r * np.exp(-2j * np.pi * k * other / n)
@@ -562,7 +556,18 @@ def shift_separation_z(
     return np.asarray(z, dtype=np.float64)
 
 
+def _rfft_weights(n: int) -> FloatArray:
+    """Parseval's weights of a real signal's rfft bins: ``Σ w·|X_k|² = n·Σ x²``."""
+    weight = np.full(n // 2 + 1, 2.0)
+    weight[0] = 1.0
+    if n % 2 == 0:
+        weight[-1] = 1.0
+    return weight
+
+
 def _smoothed_noise(power: FloatArray, teeth: int, floor: float) -> FloatArray:
+    """Noise power per order: ``power`` smoothed over ``teeth`` neighbouring orders, plus a floor
+    (1e-12 of the record's mean power per order: an exact copy gives a large, finite z)."""
     width = max(3, int(teeth) | 1)
     smooth = np.convolve(np.pad(power, width // 2, mode="reflect"), np.ones(width) / width, mode="valid")
     return np.asarray(smooth + floor + 1e-300, dtype=np.float64)
@@ -580,10 +585,7 @@ def _masked_separation_z(
     n = f.size
     w = keep.astype(np.float64)
     fraction = float(w.mean())
-    weight = np.full(n // 2 + 1, 2.0)
-    weight[0] = 1.0
-    if n % 2 == 0:
-        weight[-1] = 1.0
+    weight = _rfft_weights(n)
     g_best = w * circular_shift(r, int(best_delay))
     energy_best = float(g_best @ g_best)
     masked = w * f

@@ -489,8 +489,7 @@ def place_in_tooth_frame(
     )
     alignment = align_fingerprint(fingerprint, reference_canonical, pinion_teeth,
                                   no_confirmation_reason=placement.unsteady_angle)
-    left_out = loud_sectors(pinion_average, pinion_teeth)
-    if alignment.shift_teeth is None and left_out.any():
+    if alignment.shift_teeth is None and (left_out := loud_sectors(pinion_average, pinion_teeth)).any():
         # a grown spall (and its ringing) reshapes its own sectors: the rest of the pattern may
         # still say where the teeth are
         retry = align_fingerprint(fingerprint, reference_canonical, pinion_teeth,
