@@ -421,9 +421,10 @@ def align_fingerprint(
                           left_out_sectors=left_out_list)
 
 
-def tooth_energy_pattern(fingerprint: ArrayLike, teeth: int) -> FloatArray:
+def tooth_energy_pattern(fingerprint: ArrayLike, teeth: int, left_out: ArrayLike | None = None) -> FloatArray:
     """How much each tooth sector of a fingerprint deviates: log mean square per sector,
-    standardised (mean 0, standard deviation 1; zeros when every sector is alike).
+    standardised (mean 0, standard deviation 1; zeros when every sector is alike). Sectors in
+    ``left_out`` (boolean per tooth) are 0 — no vote — and the rest standardised without them.
 
     A whole-tooth shift of the record rolls this vector; a phase that turns with frequency (a
     transfer path seen at another speed) reshapes the waveform inside the sectors but moves
@@ -438,11 +439,12 @@ def tooth_energy_pattern(fingerprint: ArrayLike, teeth: int) -> FloatArray:
     """
     x = _checked(fingerprint, teeth)
     energy = np.log(np.mean(x.reshape(teeth, -1) ** 2, axis=1) + 1e-300)
-    spread = float(np.std(energy))
+    kept = np.ones(teeth, dtype=bool) if left_out is None else ~np.asarray(left_out, dtype=bool)
+    spread = float(np.std(energy[kept]))
     # sectors equal to rounding: no pattern (a tolerance, not 0: log of equal values may differ in the last bit)
-    if not spread > 1e-9 * max(1.0, float(np.max(np.abs(energy)))):
+    if not spread > 1e-9 * max(1.0, float(np.max(np.abs(energy[kept])))):
         return np.zeros(teeth)
-    return np.asarray((energy - energy.mean()) / spread, dtype=np.float64)
+    return np.asarray(np.where(kept, (energy - energy[kept].mean()) / spread, 0.0), dtype=np.float64)
 
 
 def sector_pattern_z(
@@ -477,13 +479,8 @@ def sector_pattern_z(
     n = fp.size
     per_tooth = n // teeth
     beyond = (int(delay_samples) - int(shift_teeth) * per_tooth + n // 2) % n - n // 2
-    record_pattern = tooth_energy_pattern(np.roll(fp, -beyond), teeth)
-    if left_out is not None and np.any(left_out):
-        # the record's own sectors left out: standardised over the rest, 0 (no vote) where left out
-        kept = ~np.asarray(left_out, dtype=bool)
-        log_energy = np.log(np.mean(np.roll(fp, -beyond).reshape(teeth, -1) ** 2, axis=1) + 1e-300)
-        spread = float(np.std(log_energy[kept]))
-        record_pattern = np.where(kept, (log_energy - log_energy[kept].mean()) / spread, 0.0) if spread > 0 else np.zeros(teeth)
+    # the record's own left-out sectors have no vote
+    record_pattern = tooth_energy_pattern(np.roll(fp, -beyond), teeth, left_out)
     reference_pattern = tooth_energy_pattern(ref, teeth)
     # scores[k] = mean_j record[j]·reference[j − k]: the record is the reference k teeth later
     scores = np.fft.irfft(np.fft.rfft(record_pattern) * np.conj(np.fft.rfft(reference_pattern)), n=teeth) / teeth
