@@ -5,6 +5,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Sequence
 from contextlib import AbstractContextManager
 from typing import Generic, TypeVar
 
@@ -51,10 +52,11 @@ def tooth_sectors(
 
 
 def mci_baseline_band(
-    session: Session, rig_pk: int, channel: str, *, relative: bool = False
+    session: Session, rig_pk: int, channel: str, *, relative: bool = False,
+    campaign_ids: Sequence[int] | None = None,
 ) -> schemas.BaselineBand | None:
     """The MCI band of a rig's channel (:func:`storage.operator_queries.mci_band`)."""
-    band = mci_band(session, rig_pk, channel, relative=relative)
+    band = mci_band(session, rig_pk, channel, relative=relative, campaign_ids=campaign_ids)
     if band is None:
         return None
     return schemas.BaselineBand(

@@ -7,6 +7,7 @@ Like the other repositories: takes a session, never commits. Kept apart from
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -77,9 +78,10 @@ class OperatorQueries:
             .where(rm.rig_id == rig_id, rm.metric == metric, rm.is_current.is_(True))
             .order_by(rm.taken_at, rm.record_id)
         ).all()
+        rows = [row for row in rows if row[2] in names]
         if channel is None and rows:
             channel = min(names[row[2]] for row in rows)
-        rows = [row for row in rows if names.get(row[2]) == channel]
+        rows = [row for row in rows if names[row[2]] == channel]
         return TrendMatrix(
             channel,
             [0],
@@ -98,12 +100,8 @@ class OperatorQueries:
         return int(row[0] or 0), int(row[1] or 0)
 
     def channel_names(self, rig_id: int) -> dict[int, str]:
-        query = (
-            sa.select(Channel.id, Channel.name)
-            .join(Campaign, Campaign.id == Channel.campaign_id)
-            .where(Campaign.rig_id == rig_id)
-        )
-        return {int(i): str(n) for i, n in self.session.execute(query)}
+        """The channels a rig's views cover: those of its current gear pair's campaigns."""
+        return TrendRepository(self.session).channel_names(rig_id)
 
     def channel_unit(self, rig_id: int, channel: str | None) -> str:
         """The unit of a rig's channel as declared in its campaign manifest (``""`` if none)."""
@@ -198,19 +196,34 @@ class Band:
     records: int
 
 
-def mci_band(session: Session, rig_pk: int, channel: str, *, relative: bool = False) -> Band | None:
+def mci_band(
+    session: Session, rig_pk: int, channel: str, *, relative: bool = False,
+    campaign_ids: Sequence[int] | None = None,
+) -> Band | None:
     """The MCI band of a rig's channel over its first accepted records (current results).
 
-    As many records as the rig's ``mci_depth`` rule learns its baseline from (default 10). Only
+    As many records as the rig's ``mci_depth`` rule learns its baseline from (default 10), of
+    the ``campaign_ids`` (default: the campaigns of the rig's current gear pair,
+    :meth:`~storage.repositories.RigRepository.current_pair_campaign_ids`). Only
     curves of the most common length take part (a re-analysis with other samples per
     revolution changes the length). ``None`` with fewer than :data:`MIN_BAND_RECORDS`.
     ``relative``: each curve minus its own median first (:func:`relative_to_median`).
     """
     rule = AlarmRuleRepository(session).get_for(rig_pk, "mci_depth")
     count = rule.baseline_records if rule is not None else DEFAULT_BASELINE_RECORDS
+    if campaign_ids is None:
+        campaign_ids = RigRepository(session).current_pair_campaign_ids(
+            RigRepository(session).get(rig_pk))
     records = RecordRepository(session)
     curves: list[np.ndarray] = []
-    for record in records.list(rig_id=rig_pk, status="accepted", limit=count):
+    pair_records = session.scalars(
+        sa.select(Record)
+        .where(Record.rig_id == rig_pk, Record.status == "accepted",
+               Record.campaign_id.in_(list(campaign_ids)))
+        .order_by(Record.taken_at, Record.id)
+        .limit(count)
+    ).all()
+    for record in pair_records:
         result = records.current_result(record.id)
         if result is None:
             continue

@@ -35,11 +35,10 @@ from storage.models import (
     Campaign,
     ChannelResult,
     Curve,
-    Rig,
     ToothIndicator,
     float32_array,
 )
-from storage.repositories import RecordRepository
+from storage.repositories import RecordRepository, gear_pair, rig_gear_pair
 
 logger = logging.getLogger(__name__)
 
@@ -58,10 +57,11 @@ def refresh_tooth_change(session: Session, campaign_id: int, record_id: int | No
     own values can change, and they are computed from the campaign's first records (module
     docstring); otherwise, or without it, every record is recomputed.
     The caller holds the rig's lock (:func:`gearwatch.usecases.running_baselines.lock_rig`)."""
-    pinion_teeth = session.execute(
-        sa.select(Rig.pinion_teeth).join(Campaign, Campaign.rig_id == Rig.id)
-        .where(Campaign.id == campaign_id)
-    ).scalar_one_or_none()
+    campaign = session.get(Campaign, campaign_id)
+    if campaign is None:
+        return 0
+    # the pair this campaign ran: the rig may carry another one since (storage.repositories.rigs)
+    pinion_teeth = (gear_pair(campaign.manifest) or rig_gear_pair(campaign.rig)).pinion_teeth
     if not pinion_teeth:
         return 0
     by_channel: dict[int, list[tuple[ChannelResult, int, int, object]]] = defaultdict(list)

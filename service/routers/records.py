@@ -45,7 +45,13 @@ from service.upload import (
     receive_upload,
 )
 from storage.raw_store import RawStore
-from storage.repositories import AuditRepository, RecordRepository, RigRepository
+from storage.repositories import (
+    AuditRepository,
+    RecordRepository,
+    RigRepository,
+    gear_pair,
+    rig_gear_pair,
+)
 
 router = APIRouter(prefix="/api/v1", tags=["records"])
 
@@ -368,15 +374,20 @@ def curves(
                             ("mci", "mci_raw") else c.values)
         for c in records.curves(result.id, channel=channel, names=names)
     }
-    rig = RigRepository(db).get(record.rig_id)
+    rigs = RigRepository(db)
+    rig = rigs.get(record.rig_id)
+    # the gear pair this record's campaign ran, which need not be the rig's current one
+    pair = gear_pair(record.campaign.manifest) or rig_gear_pair(rig)
     return schemas.CurvesOut(
         record_id=record.id,
         result_id=result.id,
         channel=channel,
         samples_per_rev=samples_per_rev,
-        pinion_teeth=rig.pinion_teeth,
-        tooth1_pitch_angle_deg=rig.tooth1_pitch_angle_deg,
+        pinion_teeth=pair.pinion_teeth,
+        tooth1_pitch_angle_deg=pair.tooth1_pitch_angle_deg,
         curves=data,
-        sectors=tooth_sectors(rig.pinion_teeth, rig.tooth1_pitch_angle_deg),
-        baseline_band=mci_baseline_band(db, rig.id, channel, relative=relative) if band else None,
+        sectors=tooth_sectors(pair.pinion_teeth, pair.tooth1_pitch_angle_deg),
+        baseline_band=mci_baseline_band(
+            db, rig.id, channel, relative=relative, campaign_ids=rigs.pair_campaign_ids(rig, pair)
+        ) if band else None,
     )

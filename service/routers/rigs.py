@@ -26,6 +26,7 @@ from storage.repositories import (
     AlarmRuleRepository,
     AuditRepository,
     RigRepository,
+    rig_gear_pair,
 )
 
 router = APIRouter(prefix="/api/v1/rigs", tags=["rigs"])
@@ -142,8 +143,9 @@ def _load_trend(
     """Check the rig's data version in the database; build the answer if it is not cached."""
     rig_name, indicator, tooth, channel = key
     rig = rig_by_name(db, rig_name)
-    # The pinion tooth count is part of the version: it sets the columns of the answer.
-    version: tuple[object, ...] = (rig.id, rig.pinion_teeth, *trend_version(db, rig.id))
+    # The rig's gear pair is part of the version: its tooth count sets the columns of the
+    # answer, and a new pair changes which campaigns the trend covers.
+    version: tuple[object, ...] = (rig.id, *rig_gear_pair(rig), *trend_version(db, rig.id))
     if indicator not in STORED_TOOTH_INDICATORS:  # whole-record rows (rigs without teeth have no others)
 
         version += OperatorQueries(db).metric_version(rig.id)

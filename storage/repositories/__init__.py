@@ -22,7 +22,13 @@ from storage.repositories.base import Repository, json_safe, parameters_sha256
 from storage.repositories.keys import ApiKeyRepository
 from storage.repositories.reconciliations import ReconciliationRepository
 from storage.repositories.records import CurveData, RecordRepository
-from storage.repositories.rigs import CampaignRepository, RigRepository
+from storage.repositories.rigs import (
+    CampaignRepository,
+    GearPair,
+    RigRepository,
+    gear_pair,
+    rig_gear_pair,
+)
 from storage.repositories.trends import TrendMatrix, TrendPoint, TrendRepository
 
 __all__ = [
@@ -34,6 +40,7 @@ __all__ = [
     "AuditRepository",
     "CampaignRepository",
     "CurveData",
+    "GearPair",
     "ReconciliationRepository",
     "RecordRepository",
     "Repository",
@@ -41,6 +48,8 @@ __all__ = [
     "TrendMatrix",
     "TrendPoint",
     "TrendRepository",
+    "gear_pair",
     "json_safe",
     "parameters_sha256",
+    "rig_gear_pair",
 ]

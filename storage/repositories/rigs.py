@@ -1,9 +1,19 @@
-"""Rigs and campaigns (with their channels), created or updated from a manifest."""
+"""Rigs and campaigns (with their channels), created or updated from a manifest.
+
+A rig is the test machine; a campaign runs one gear pair on it. Successive campaigns may mount
+different pairs (other tooth counts, another tooth-1 angle): the rig row holds the pair of the
+manifest it last saw, each campaign keeps its own in its stored manifest (:func:`gear_pair`),
+and the rig's per-tooth views cover the campaigns of its current pair
+(:meth:`RigRepository.current_pair_campaign_ids`) — tooth 5 of one pair is not tooth 5 of the
+next.
+"""
 
 from __future__ import annotations
 
 import builtins
 import dataclasses
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
 import sqlalchemy as sa
 
@@ -16,6 +26,29 @@ from storage.models import (
     Rig,
 )
 from storage.repositories.base import Repository, json_safe
+
+
+class GearPair(NamedTuple):
+    """The gear pair a campaign ran: what per-tooth numbers of its records refer to."""
+
+    pinion_teeth: int | None
+    gear_teeth: int | None
+    tooth1_pitch_angle_deg: float
+
+
+def gear_pair(manifest: Mapping[str, Any] | None) -> GearPair | None:
+    """The gear pair in a campaign's stored manifest (:attr:`Campaign.manifest`; None: a
+    manifest without one)."""
+    rig = (manifest or {}).get("rig")
+    if not isinstance(rig, dict):
+        return None
+    return GearPair(rig.get("pinion_teeth"), rig.get("gear_teeth"),
+                    float(rig.get("tooth1_pitch_angle_deg") or 0.0))
+
+
+def rig_gear_pair(rig: Rig) -> GearPair:
+    """The gear pair the rig row holds (its latest manifest's)."""
+    return GearPair(rig.pinion_teeth, rig.gear_teeth, float(rig.tooth1_pitch_angle_deg))
 
 
 class RigRepository(Repository[Rig]):
@@ -39,6 +72,15 @@ class RigRepository(Repository[Rig]):
         rig.tooth1_pitch_angle_deg = float(config.tooth1_pitch_angle_deg)
         self.session.flush()
         return rig
+
+    def pair_campaign_ids(self, rig: Rig, pair: GearPair) -> builtins.list[int]:
+        """The rig's campaigns that ran ``pair``, and those whose manifest names no pair."""
+        campaigns = self.session.scalars(sa.select(Campaign).where(Campaign.rig_id == rig.id))
+        return sorted(c.id for c in campaigns if gear_pair(c.manifest) in (None, pair))
+
+    def current_pair_campaign_ids(self, rig: Rig) -> builtins.list[int]:
+        """The rig's campaigns that ran its current gear pair (module docstring)."""
+        return self.pair_campaign_ids(rig, rig_gear_pair(rig))
 
 
 class CampaignRepository(Repository[Campaign]):

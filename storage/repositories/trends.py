@@ -16,9 +16,11 @@ from storage.models import (
     Channel,
     Record,
     RecordMetric,
+    Rig,
     ToothIndicator,
 )
 from storage.repositories.base import Repository
+from storage.repositories.rigs import GearPair, gear_pair
 
 
 class TrendPoint(NamedTuple):
@@ -102,8 +104,8 @@ class TrendRepository(Repository[ToothIndicator]):
         names = self.channel_names(rig_id)
         if tooth is not None:
             query = query.where(ti.tooth == tooth)
-        if channel is not None:
-            query = query.where(ti.channel_id.in_([k for k, n in names.items() if n == channel]))
+        query = query.where(
+            ti.channel_id.in_([k for k, n in names.items() if channel is None or n == channel]))
         cells = self.session.connection().execute(query).all()
         teeth = [tooth] if tooth is not None else list(range(1, (pinion_teeth or 0) + 1))
         if not cells:
@@ -159,9 +161,8 @@ class TrendRepository(Repository[ToothIndicator]):
         names = self.channel_names(rig_id)
         if tooth is not None and model is ToothIndicator:
             query = query.where(ToothIndicator.tooth == tooth)
-        if channel is not None:
-            ids = [key for key, name in names.items() if name == channel]
-            query = query.where(model.channel_id.in_(ids))
+        ids = [key for key, name in names.items() if channel is None or name == channel]
+        query = query.where(model.channel_id.in_(ids))
         if since is not None:
             query = query.where(model.taken_at >= since)
         if until is not None:
@@ -176,13 +177,22 @@ class TrendRepository(Repository[ToothIndicator]):
         ]
 
     def channel_names(self, rig_id: int) -> dict[int, str]:
-        """Channel id → name for every campaign of the rig."""
+        """Channel id → name for every campaign of the rig's current gear pair
+        (:meth:`~storage.repositories.rigs.RigRepository.current_pair_campaign_ids`): the
+        channels a rig's trends cover."""
         query = (
-            sa.select(Channel.id, Channel.name)
+            sa.select(Channel.id, Channel.name, Campaign.manifest, Rig.pinion_teeth,
+                      Rig.gear_teeth, Rig.tooth1_pitch_angle_deg)
             .join(Campaign, Campaign.id == Channel.campaign_id)
+            .join(Rig, Rig.id == Campaign.rig_id)
             .where(Campaign.rig_id == rig_id)
-        )
-        return {channel_id: name for channel_id, name in self.session.execute(query)}
+        )  # one query: a trend's cost is its queries
+        return {
+            int(channel_id): str(name)
+            for channel_id, name, manifest, pinion_teeth, gear_teeth, tooth1_deg
+            in self.session.execute(query)
+            if gear_pair(manifest) in (None, GearPair(pinion_teeth, gear_teeth, float(tooth1_deg)))
+        }
 
     def metric_trend(
         self,

@@ -182,3 +182,50 @@ def test_per_rig_webhooks_are_managed_over_rest_and_audited(api: Api, seeded: Se
     )
     assert gone.status_code == 204
     assert api.get("/api/v1/rigs/rig-a/webhooks", role="operator").json()["items"] == []
+
+
+def _seed_pair(api: Api, campaign: str, teeth: int, day0: int, days: int) -> list[int]:
+    """``days`` accepted records of a campaign on rig ``rig-p`` whose pinion has ``teeth``."""
+    from storage.repositories import CampaignRepository, RecordRepository
+
+    ids = []
+    with api.session() as session:
+        stored = CampaignRepository(session).ensure(
+            campaign_config(campaign, "rig-p", pinion_teeth=teeth, gear_teeth=43))
+        records = RecordRepository(session)
+        for day in range(day0, day0 + days):
+            sha = f"{campaign}{day}".encode().hex().ljust(64, "0")[:64]
+            record = records.add(
+                stored, sha256=sha, file_name=f"{campaign}{day}.wav", raw_location="/nonexistent",
+                taken_at=dt.datetime(2026, 4, 1, 8, tzinfo=dt.UTC) + dt.timedelta(days=day),
+            )
+            result_analysis = analysis(sha256=sha, teeth=teeth, curve_length=64 * teeth)
+            records.mark_accepted(record, result_analysis)
+            records.add_result(record, result_analysis)
+            ids.append(record.id)
+        session.commit()
+    return ids
+
+
+def test_a_new_gear_pair_on_a_rig_starts_its_own_tooth_views(api: Api) -> None:
+    """A rig runs one gear pair per campaign: after a 17-tooth pinion replaces a 20-tooth one,
+    the rig's trends cover the 17-tooth campaign (tooth 5 of one pinion is not tooth 5 of the
+    other), an older record keeps its own pinion's teeth, and replaying the older campaign's
+    manifest brings its pair back."""
+    first = _seed_pair(api, "pair-20", 20, 0, 3)
+    assert api.get("/api/v1/rigs/rig-p/trends?indicator=mci_depth").json()["teeth"] == list(
+        range(1, 21))
+    second = _seed_pair(api, "pair-17", 17, 3, 2)
+    for indicator in ("mci_depth", "kurtosis"):
+        trend = api.get(f"/api/v1/rigs/rig-p/trends?indicator={indicator}").json()
+        assert [r["record_id"] for r in trend["records"]] == second, indicator
+        assert len(trend["values"][0]) == (17 if indicator == "mci_depth" else 1)
+    assert api.get("/api/v1/rigs/rig-p").json()["pinion_teeth"] == 17
+    curves = api.get(f"/api/v1/records/{first[0]}/curves?names=mci").json()
+    assert curves["pinion_teeth"] == 20
+    assert {s["tooth"] for s in curves["sectors"]} == set(range(1, 21))
+    # the older campaign's manifest again (a replay with new parameters): its pair is current
+    _seed_pair(api, "pair-20", 20, 5, 1)
+    trend = api.get("/api/v1/rigs/rig-p/trends?indicator=mci_depth").json()
+    assert trend["teeth"] == list(range(1, 21))
+    assert [r["record_id"] for r in trend["records"]][:3] == first
