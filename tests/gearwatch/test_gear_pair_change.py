@@ -12,12 +12,14 @@ import scipy.io.wavfile
 import sqlalchemy as sa
 
 from dsp.synthetic import synthetic_gear_record
+from gearwatch.floor.campaign import RecordEntry
 from gearwatch.usecases.ingest_file import process_file
 from gearwatch.usecases.tooth_change import refresh_tooth_change
-from ingest.manifest import load_manifest
+from ingest.manifest import dump_manifest, load_manifest
 from storage.models import Record, ToothIndicator
 from storage.raw_store import RawStore
 from tests.storage import dbfixtures
+from tests.storage.factories import campaign_config
 
 _postgres_schema = dbfixtures._postgres_schema
 db_url = dbfixtures.db_url
@@ -35,18 +37,12 @@ def _campaign(folder: Path, name: str, pinion_teeth: int, gear_teeth: int, days:
         scipy.io.wavfile.write(folder / f"day{day:02d}.wav", int(record.sample_rate_hz),
                                np.column_stack([record.acceleration, record.tach_waveform])
                                .astype(np.float32))
-        taken = dt.datetime(2026, 3, day, 9, tzinfo=dt.UTC).isoformat()
-        entries.append(f'    {{ file = "day{day:02d}.wav", taken_at = "{taken}" }},')
+        taken = dt.datetime(2026, 3, day, 9, tzinfo=dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+        entries.append(RecordEntry(file=f"day{day:02d}.wav", taken_at=taken))
+    config = campaign_config(name, "one-rig", pinion_teeth=pinion_teeth, gear_teeth=gear_teeth,
+                             records=tuple(entries), root=folder)
     manifest = folder / "campaign.toml"
-    manifest.write_text(
-        "records = [\n" + "\n".join(entries) + "\n]\n\n"
-        f'[campaign]\nid = "{name}"\n\n'
-        f'[rig]\nid = "one-rig"\npinion_teeth = {pinion_teeth}\ngear_teeth = {gear_teeth}\n\n'
-        '[tachometer]\nchannel = "tach"\n\n'
-        '[[channels]]\nname = "acc"\nkind = "accelerometer"\n\n'
-        '[[channels]]\nname = "tach"\nkind = "tachometer"\n',
-        encoding="utf-8",
-    )
+    manifest.write_text(dump_manifest(config), encoding="utf-8")
     return manifest
 
 
