@@ -212,8 +212,8 @@ def mci_band(
     rule = AlarmRuleRepository(session).get_for(rig_pk, "mci_depth")
     count = rule.baseline_records if rule is not None else DEFAULT_BASELINE_RECORDS
     if campaign_ids is None:
-        campaign_ids = RigRepository(session).current_pair_campaign_ids(
-            RigRepository(session).get(rig_pk))
+        rigs = RigRepository(session)
+        campaign_ids = rigs.current_pair_campaign_ids(rigs.get(rig_pk))
     records = RecordRepository(session)
     curves: list[np.ndarray] = []
     pair_records = session.scalars(
