@@ -46,6 +46,12 @@ def gear_pair(manifest: Mapping[str, Any] | None) -> GearPair | None:
                     float(rig.get("tooth1_pitch_angle_deg") or 0.0))
 
 
+def ran_pair(manifest: Mapping[str, Any] | None, pair: GearPair) -> bool:
+    """Whether the campaign of this stored manifest ran ``pair`` (one naming no pair counts as
+    having run it: its records have nothing else to be compared with)."""
+    return gear_pair(manifest) in (None, pair)
+
+
 def rig_gear_pair(rig: Rig) -> GearPair:
     """The gear pair the rig row holds (its latest manifest's)."""
     return GearPair(rig.pinion_teeth, rig.gear_teeth, float(rig.tooth1_pitch_angle_deg))
@@ -76,7 +82,7 @@ class RigRepository(Repository[Rig]):
     def pair_campaign_ids(self, rig: Rig, pair: GearPair) -> builtins.list[int]:
         """The rig's campaigns that ran ``pair``, and those whose manifest names no pair."""
         campaigns = self.session.scalars(sa.select(Campaign).where(Campaign.rig_id == rig.id))
-        return sorted(c.id for c in campaigns if gear_pair(c.manifest) in (None, pair))
+        return sorted(c.id for c in campaigns if ran_pair(c.manifest, pair))
 
     def current_pair_campaign_ids(self, rig: Rig) -> builtins.list[int]:
         """The rig's campaigns that ran its current gear pair (module docstring)."""

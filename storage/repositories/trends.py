@@ -20,7 +20,7 @@ from storage.models import (
     ToothIndicator,
 )
 from storage.repositories.base import Repository
-from storage.repositories.rigs import GearPair, gear_pair
+from storage.repositories.rigs import GearPair, ran_pair
 
 
 class TrendPoint(NamedTuple):
@@ -191,7 +191,7 @@ class TrendRepository(Repository[ToothIndicator]):
             int(channel_id): str(name)
             for channel_id, name, manifest, pinion_teeth, gear_teeth, tooth1_deg
             in self.session.execute(query)
-            if gear_pair(manifest) in (None, GearPair(pinion_teeth, gear_teeth, float(tooth1_deg)))
+            if ran_pair(manifest, GearPair(pinion_teeth, gear_teeth, float(tooth1_deg)))
         }
 
     def metric_trend(
