@@ -27,6 +27,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from dsp.robust import SAMPLED_BLOCKS, spread_block_starts
 from dsp.tachgaps import (
     LOCAL_PERIOD_WINDOW,
     SMOOTH_STEP_LIMIT,
@@ -169,8 +170,8 @@ def shaft_ratios(
 
 
 LEVEL_SAMPLES = 65_536
-"""Samples (64 blocks at random positions, fixed seed) from which :func:`waveform_levels`
-estimates the levels and the noise of a longer waveform."""
+"""Samples (64 blocks, :func:`dsp.robust.spread_block_starts`) from which
+:func:`waveform_levels` estimates the levels and the noise of a longer waveform."""
 
 
 def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
@@ -204,9 +205,9 @@ def waveform_levels(signal: ArrayLike) -> tuple[float, float, float]:
     if x.size == 0:
         raise TachometerError("empty tachometer waveform")
     if x.size > LEVEL_SAMPLES:
-        # 64 contiguous blocks at random starts: cache-friendly, and random phases cannot alias.
-        block = LEVEL_SAMPLES // 64
-        starts = np.random.default_rng(0).integers(0, x.size - block, 64)
+        # contiguous blocks: cache-friendly; irregularly spaced: their phases cannot alias
+        block = LEVEL_SAMPLES // SAMPLED_BLOCKS
+        starts = spread_block_starts(x.size, block)
         blocks = np.asarray(x[starts[:, np.newaxis] + np.arange(block)], dtype=np.float64)
         values = blocks.ravel()
         steps = np.diff(blocks, axis=1).ravel()

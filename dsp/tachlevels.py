@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import maximum_filter1d, minimum_filter1d, uniform_filter1d
 
+from dsp.robust import SAMPLED_BLOCKS, spread_block_starts
 from dsp.tach import TachometerError, pulse_times_from_waveform_blocks
 
 FloatArray = NDArray[np.float64]
@@ -110,10 +111,10 @@ def _local_levels(segment: FloatArray, window: int) -> tuple[FloatArray, FloatAr
 
 
 def _typical_swing(x: NDArray[np.generic], window: int) -> float:
-    """90th percentile of the local swing, from up to 64 stretches of 8 windows at random starts
-    (a fixed seed: the same record gives the same value)."""
+    """90th percentile of the local swing, from up to 64 stretches of 8 windows spread over the
+    record (:func:`dsp.robust.spread_block_starts`: the same record gives the same value)."""
     span = min(x.size, 8 * window)
-    starts = [0] if x.size <= 64 * span else np.random.default_rng(0).integers(0, x.size - span, 64)
+    starts = [0] if x.size <= SAMPLED_BLOCKS * span else spread_block_starts(x.size, span)
     swings = []
     for s in starts:
         low, high = _local_levels(np.asarray(x[s : s + span], dtype=np.float64), window)

@@ -281,9 +281,9 @@ def standout_tooth(
 
 
 def revolution_group_sums(
-    revolutions: ArrayLike, groups: int = JACKKNIFE_GROUPS
+    revolutions: ArrayLike, groups: int = JACKKNIFE_GROUPS, first: int = 0
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Sums and counts of the interleaved groups of revolutions (revolution ``r`` → ``r mod K``).
+    """Sums and counts of the interleaved groups of revolutions (revolution ``r`` → ``(first + r) mod K``).
 
     Parameters
     ----------
@@ -291,6 +291,8 @@ def revolution_group_sums(
         One revolution per row.
     groups : int
         ``K``.
+    first : int
+        The record's number of the first row (a block of a longer record).
 
     Returns
     -------
@@ -302,12 +304,18 @@ def revolution_group_sums(
     >>> sums, counts = revolution_group_sums([[1.0], [2.0], [3.0]], groups=2)
     >>> sums.ravel().tolist(), counts.tolist()
     ([4.0, 2.0], [2, 1])
+    >>> sums, counts = revolution_group_sums([[1.0], [2.0], [3.0]], groups=2, first=1)
+    >>> sums.ravel().tolist(), counts.tolist()
+    ([2.0, 4.0], [1, 2])
     """
     rows = np.asarray(revolutions, dtype=np.float64)
     if rows.ndim != 2:
         raise ValueError(f"revolutions must be (R, N), got shape {rows.shape}")
-    index = np.arange(rows.shape[0]) % int(groups)
-    sums = np.zeros((int(groups), rows.shape[1]))
-    np.add.at(sums, index, rows)
-    counts = np.bincount(index, minlength=int(groups)).astype(np.int64)
-    return sums, counts
+    groups = int(groups)
+    sums = np.zeros((groups, rows.shape[1]))
+    # one strided sum of rows per group: no copy of the revolutions (np.add.at row by row was
+    # ~20× slower, a padded copy one more pass over them)
+    for j in range(min(groups, rows.shape[0])):
+        sums[(first + j) % groups] = rows[j::groups].sum(axis=0)
+    counts = np.bincount((first + np.arange(rows.shape[0])) % groups, minlength=groups)
+    return sums, counts.astype(np.int64)

@@ -20,7 +20,7 @@ from dsp.robust import (
     revolutions_overlapping,
 )
 from dsp.shaftperiod import PeriodSums, PeriodSumsAccumulator
-from dsp.toothscore import JACKKNIFE_GROUPS
+from dsp.toothscore import JACKKNIFE_GROUPS, revolution_group_sums
 
 
 def gear_revolutions_from_pinion_grid(pinion_revs: np.ndarray, gear_samples_per_rev: int) -> np.ndarray:
@@ -79,23 +79,6 @@ def _revolution_bounds_s(
     return np.stack([times[:, 0], times[:, -1] + step], axis=1)
 
 
-def _add_to_groups(
-    group_sums: np.ndarray, group_counts: np.ndarray, revs: np.ndarray, first: int
-) -> None:
-    """Add revolution ``r`` of ``revs`` (revolution ``first + r`` of the record) to group
-    ``(first + r) mod K``, in place: the rows padded to whole rounds of K and summed round by
-    round (``np.add.at`` does the same row by row, ~20× slower)."""
-    groups = group_sums.shape[0]
-    if revs.shape[0] == 0:
-        return
-    lead = first % groups
-    rounds = -(-(lead + revs.shape[0]) // groups)
-    padded = np.zeros((rounds * groups, revs.shape[1]))
-    padded[lead : lead + revs.shape[0]] = revs
-    group_sums += padded.reshape(rounds, groups, revs.shape[1]).sum(axis=0)
-    group_counts += np.bincount((first + np.arange(revs.shape[0])) % groups, minlength=groups)
-
-
 def angle_averages(
     samples: np.ndarray,
     sample_rate_hz: float,
@@ -139,7 +122,6 @@ def angle_averages(
     )
     samples_per_hunting = hunting_tach_revs * seconds_per_tach_rev * sample_rate_hz
     block_tach_revs = hunting_tach_revs * max(1, int(block_samples // max(samples_per_hunting, 1)))
-    pinion_sum = np.zeros(pinion_spr)
     pinion_sumsq = np.zeros(pinion_spr)
     gear_sum = np.zeros(gear_spr)
     pinion_count = gear_count = rejected_defective = rejected_outliers = rejected_gaps = 0
@@ -187,21 +169,31 @@ def angle_averages(
         # a revolution with a defect counts as defective, else one in a tach gap as a gap
         in_gap = revolutions_overlapping(own_bounds, gaps_s - start / sample_rate_hz) & ~touched
         dropped = touched | in_gap
-        outliers = np.zeros_like(dropped)
-        outliers[~dropped] = revolution_outliers(revs[~dropped], outlier_factor)
+        # (the usual block drops nothing: then no copy of its revolutions is made)
+        if dropped.any():
+            outliers = np.zeros_like(dropped)
+            outliers[~dropped] = revolution_outliers(revs[~dropped], outlier_factor)
+        else:
+            outliers = revolution_outliers(revs, outlier_factor)
         accepted = ~(dropped | outliers)
         rejected_defective += int(touched.sum())
         rejected_gaps += int(in_gap.sum())
         rejected_outliers += int(outliers.sum())
-        good = revs[accepted]
-        pinion_sum += good.sum(axis=0)
+        all_accepted = bool(accepted.all())
+        good = revs if all_accepted else revs[accepted]
         pinion_sumsq += np.einsum("ij,ij->j", good, good)
-        _add_to_groups(group_sums, group_counts, good, pinion_count)
+        sums, counts = revolution_group_sums(good, JACKKNIFE_GROUPS, pinion_count)
+        group_sums += sums  # (and so the pinion sum)
+        group_counts += counts
         pinion_count += good.shape[0]
         gear_revs = gear_revolutions_from_pinion_grid(revs, gear_spr)
-        sample_ok = np.repeat(accepted, pinion_spr)[: gear_revs.size].reshape(gear_revs.shape)
-        gear_accepted = sample_ok.all(axis=1)
-        gear_good = gear_revs[gear_accepted]
+        if all_accepted:
+            gear_accepted = np.ones(gear_revs.shape[0], dtype=bool)
+            gear_good = gear_revs
+        else:
+            sample_ok = np.repeat(accepted, pinion_spr)[: gear_revs.size].reshape(gear_revs.shape)
+            gear_accepted = np.all(sample_ok, axis=1)
+            gear_good = gear_revs[gear_accepted]
         if pinion_period is not None and gear_period is not None:
             first_index = 0 if len(plan) == 1 else round(first_rev * pinion_per_tach_rev)
             pinion_period.add(good, first_index + np.flatnonzero(accepted))
@@ -209,7 +201,7 @@ def angle_averages(
         gear_index += gear_revs.shape[0]
         gear_sum += gear_good.sum(axis=0)
         gear_count += gear_good.shape[0]
-    pinion_average = pinion_sum / max(pinion_count, 1)
+    pinion_average = group_sums.sum(axis=0) / max(pinion_count, 1)
     residual_power = (
         float(np.mean(pinion_sumsq - pinion_count * pinion_average**2)) / (pinion_count - 1)
         if pinion_count > 1

@@ -17,6 +17,7 @@ from dsp.robust import (
     revolution_outliers,
     revolutions_overlapping,
     spike_threshold,
+    spread_block_starts,
 )
 
 
@@ -213,3 +214,24 @@ def test_a_gain_step_is_not_an_outlier() -> None:
     assert not revolution_outliers(revs).any()
     revs[10, 100] += 3.0  # a glitch is still one
     assert np.flatnonzero(revolution_outliers(revs)).tolist() == [10]
+
+
+@pytest.mark.parametrize("size", [65_537, 100_003, 6_000_000, 123_456_789])
+def test_sampled_blocks_stay_inside_and_spread_over_the_record(size: int) -> None:
+    block = 1024
+    starts = spread_block_starts(size, block)
+    assert starts.size == 64
+    assert starts[0] >= 0 and starts[-1] + block <= size
+    assert np.all(np.diff(starts) >= 0)
+    # one block per 64th of the record: no stretch of two 64ths is left unsampled
+    stretch = (size - block) / 64
+    assert np.max(np.diff(np.concatenate(([0], starts, [size - block])))) < 2 * stretch
+
+
+def test_sampled_blocks_do_not_lock_onto_a_periodic_signal() -> None:
+    # equally spaced blocks of a signal whose period divides their spacing would all see the same
+    # phase; the spread starts see every phase
+    size, block = 6_400_000, 1024
+    period = (size - block) / 64  # the spacing of an even 64-way split
+    phases = (spread_block_starts(size, block) % period) / period
+    assert np.ptp(phases) > 0.5

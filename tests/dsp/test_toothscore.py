@@ -52,6 +52,20 @@ def test_leave_one_out_averages_of_groups() -> None:
     assert np.allclose(loo[1], np.delete(revolutions, [1, 5, 9], axis=0).mean(axis=0))
 
 
+def test_group_sums_of_blocks_add_up_to_the_whole_record() -> None:
+    # the pipeline accumulates the groups block by block (first = the block's first revolution)
+    revolutions = np.random.default_rng(3).standard_normal((23, 7))
+    whole_sums, whole_counts = revolution_group_sums(revolutions, groups=5)
+    sums, counts = np.zeros((5, 7)), np.zeros(5, dtype=np.int64)
+    for start, stop in ((0, 3), (3, 4), (4, 15), (15, 23)):
+        s, c = revolution_group_sums(revolutions[start:stop], groups=5, first=start)
+        sums += s
+        counts += c
+    assert np.allclose(sums, whole_sums) and np.array_equal(counts, whole_counts)
+    for group in range(5):
+        assert np.allclose(whole_sums[group], revolutions[group::5].sum(axis=0))
+
+
 def test_score_false_alarm_rate_on_pure_noise() -> None:
     # Healthy mesh + white noise: a record names a worst tooth at most ~1 % of the time
     # (the threshold's design rate); 150 records, so ≤ 4 allows sampling error (P ≈ 0.02 at 1 %).
