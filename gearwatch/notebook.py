@@ -125,9 +125,10 @@ class Store:
 
     def trend(
         self, rig: str, indicator: str = "mci_depth", tooth: int | None = None,
-        channel: str | None = None,
+        channel: str | None = None, campaign: str | None = None,
     ) -> dict[str, Any]:
-        """The REST trend answer as a dict (``records``, ``teeth``, ``values``, ``unit`` …)."""
+        """The REST trend answer as a dict (``records``, ``teeth``, ``values``, ``unit`` …);
+        ``campaign``: one campaign of the rig (default: its current gear pair's)."""
         from gearwatch.floor.errors import NotFound
         from storage.db import session_scope
         from storage.operator_queries import trend_data
@@ -137,20 +138,20 @@ class Store:
             found = RigRepository(session).get_by_name(rig)
             if found is None:
                 raise NotFound(f"rig {rig!r} not found")
-            data = trend_data(session, found, indicator, tooth, channel)
+            data = trend_data(session, found, indicator, tooth, channel, campaign)
         for record in data["records"]:
             record["taken_at"] = record["taken_at"].isoformat()
         return data
 
     def trend_frame(
         self, rig: str, indicator: str = "mci_depth", tooth: int | None = None,
-        channel: str | None = None,
+        channel: str | None = None, campaign: str | None = None,
     ) -> Any:
         """Index ``taken_at`` (UTC); columns ``record_id``, ``label``, then one per tooth
         (``1``, ``2`` …) or ``value`` for a whole-record indicator. ``attrs``: unit, indicator,
         channel."""
         pd = _pandas()
-        trend = self.trend(rig, indicator, tooth, channel)
+        trend = self.trend(rig, indicator, tooth, channel, campaign)
         columns = ["value" if t is None else t for t in trend["teeth"]]
         frame = pd.DataFrame(trend["values"], columns=columns, dtype=float)
         frame.insert(0, "label", [r["label"] for r in trend["records"]])

@@ -33,10 +33,11 @@ def check_indicator(indicator: str) -> str:
 
 
 def trend_answer(
-    db: Session, rig: Rig, indicator: str, tooth: int | None, channel: str | None
+    db: Session, rig: Rig, indicator: str, tooth: int | None, channel: str | None,
+    campaign: str | None = None,
 ) -> schemas.TrendOut:
     """The trend of any stored indicator (:func:`storage.operator_queries.trend_data`)."""
-    data = trend_data(db, rig, indicator, tooth, channel)
+    data = trend_data(db, rig, indicator, tooth, channel, campaign)
     point = schemas.TrendPoint.model_construct
     data["records"] = [point(**r) for r in data["records"]]
     return schemas.TrendOut.model_construct(**data)

@@ -367,6 +367,12 @@ class TrendOut(BaseModel):
         default="", description="Unit of the values (empty: dimensionless).", examples=["Np"]
     )
     channel: str | None = Field(default=None, examples=["acc1"])
+    campaign: str | None = Field(
+        default=None,
+        description="The campaign the trend was restricted to (null: the rig's current gear "
+        "pair's campaigns).",
+        examples=[None],
+    )
     teeth: list[int | None] = Field(examples=[[1, 2, 3]])
     records: list[TrendPoint]
     values: list[list[float | None]] = Field(examples=[[[0.02, 0.03, 0.41]]])

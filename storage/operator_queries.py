@@ -23,10 +23,13 @@ from storage.models import Alarm, Campaign, Channel, Record, RecordMetric, Rig, 
 from storage.repositories import (
     AlarmRepository,
     AlarmRuleRepository,
+    CampaignRepository,
     RecordRepository,
     RigRepository,
     TrendMatrix,
     TrendRepository,
+    gear_pair,
+    rig_gear_pair,
 )
 
 
@@ -62,17 +65,19 @@ class OperatorQueries:
 
     # -- whole-record trends --------------------------------------------------------------
     def metric_matrix(
-        self, rig_id: int, metric: str, *, channel: str | None = None
+        self, rig_id: int, metric: str, *, channel: str | None = None,
+        campaign_id: int | None = None,
     ) -> TrendMatrix:
         """A whole-record metric of one channel over the rig's accepted records (current
         result versions) as a records × 1 matrix; ``teeth`` is ``[0]`` (the whole record).
 
-        Without ``channel``, the first channel by name that has values.
+        Without ``channel``, the first channel by name that has values. The records of the
+        rig's current gear pair, or of ``campaign_id`` alone (:meth:`channel_names`).
         """
         if metric not in METRIC_NAMES:
             raise InputError(f"unknown metric {metric!r} (known: {', '.join(METRIC_NAMES)})")
         rm = RecordMetric
-        names = self.channel_names(rig_id)
+        names = self.channel_names(rig_id, campaign_id)
         rows = self.session.execute(
             sa.select(rm.record_id, rm.taken_at, rm.channel_id, rm.value)
             .where(rm.rig_id == rig_id, rm.metric == metric, rm.is_current.is_(True))
@@ -99,9 +104,10 @@ class OperatorQueries:
         ).one()
         return int(row[0] or 0), int(row[1] or 0)
 
-    def channel_names(self, rig_id: int) -> dict[int, str]:
-        """The channels a rig's views cover: those of its current gear pair's campaigns."""
-        return TrendRepository(self.session).channel_names(rig_id)
+    def channel_names(self, rig_id: int, campaign_id: int | None = None) -> dict[int, str]:
+        """The channels a rig's views cover: those of its current gear pair's campaigns, or of
+        ``campaign_id`` alone."""
+        return TrendRepository(self.session).channel_names(rig_id, campaign_id)
 
     def channel_unit(self, rig_id: int, channel: str | None) -> str:
         """The unit of a rig's channel as declared in its campaign manifest (``""`` if none)."""
@@ -267,27 +273,42 @@ def tooth_sector_list(
 
 # -- answers shared by the REST API, the command line, the report and the notebook --------------
 def trend_data(
-    session: Session, rig: Any, indicator: str, tooth: int | None, channel: str | None
+    session: Session, rig: Any, indicator: str, tooth: int | None, channel: str | None,
+    campaign: str | None = None,
 ) -> dict[str, Any]:
     """The trend of any stored indicator of a rig (the REST trend answer, as plain values):
     a records × teeth matrix; a whole-record indicator has one column whose tooth is ``None``
-    (never 0). Records carry their label; the answer its unit and title."""
+    (never 0). Records carry their label; the answer its unit and title.
+
+    The records of the rig's current gear pair; with ``campaign`` (a name), that campaign's
+    alone, numbered by the pair it ran (:mod:`storage.repositories.rigs`: tooth 5 of one
+    pair is not tooth 5 of the next). :class:`NotFound` when the rig has no
+    such campaign."""
     if indicator not in all_indicators():
         raise InputError(
             f"unknown indicator {indicator!r} (known: {', '.join(all_indicators())})"
         )
     info = indicator_info(indicator)
     queries = OperatorQueries(session)
+    pinion_teeth = rig.pinion_teeth
+    campaign_id = None
+    if campaign is not None:
+        found = CampaignRepository(session).get_by_name(campaign)
+        if found is None or found.rig_id != rig.id:
+            raise NotFound(f"campaign {campaign!r} not found on rig {rig.name!r}")
+        campaign_id = found.id
+        pinion_teeth = (gear_pair(found.manifest) or rig_gear_pair(rig)).pinion_teeth
     teeth: list[int | None]
     if info.scope == "tooth":
         matrix = TrendRepository(session).trend_matrix(
-            rig.id, indicator, tooth, channel=channel, pinion_teeth=rig.pinion_teeth
+            rig.id, indicator, tooth, channel=channel, pinion_teeth=pinion_teeth,
+            campaign_id=campaign_id,
         )
         teeth = list(matrix.teeth)
     else:
         if tooth is not None:
             raise InputError(f"{indicator!r} is a whole-record indicator: it has no tooth")
-        matrix = queries.metric_matrix(rig.id, indicator, channel=channel)
+        matrix = queries.metric_matrix(rig.id, indicator, channel=channel, campaign_id=campaign_id)
         teeth = [None]
     labels = queries.rig_record_labels(rig.id) if matrix.record_ids else {}
     return {
@@ -297,6 +318,7 @@ def trend_data(
         "scope": info.scope,
         "unit": indicator_unit(indicator, queries.channel_unit(rig.id, matrix.channel)),
         "channel": matrix.channel,
+        "campaign": campaign,
         "teeth": teeth,
         "records": [
             {"record_id": i, "taken_at": t, "label": labels.get(i, "")}

@@ -56,7 +56,8 @@ def get_rig(rig_id: RigName, db: DbSession, _caller: CurrentKey) -> schemas.RigO
     description="The current result version of every accepted record, in `taken_at` order. "
     "Without `tooth` every pinion tooth is returned; `values[i][j]` belongs to `records[i]` "
     "and `teeth[j]`. With several accelerometer channels, `channel` chooses one (default: the "
-    "first by name). Answers carry an `ETag` (`If-None-Match` gives 304 while the rig's data "
+    "first by name). `campaign` restricts the trend to one campaign of the rig, numbered by "
+    "the gear pair it ran (default: every campaign of the rig's current pair). Answers carry an `ETag` (`If-None-Match` gives 304 while the rig's data "
     "is unchanged) and are gzip-compressed for clients that send `Accept-Encoding: gzip`.",
     responses={
         200: {"content": {"text/csv": {}}},
@@ -86,6 +87,12 @@ async def trends(
         str | None,
         Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["acc1"]),
     ] = None,
+    campaign: Annotated[
+        str | None,
+        Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN,
+              description="One campaign of the rig (e.g. an earlier gear pair's).",
+              examples=["pair-1"]),
+    ] = None,
     format: Annotated[
         Literal["json", "csv"],
         Query(description="`csv`: one row per record (id, time, label), one column per tooth."),
@@ -100,7 +107,7 @@ async def trends(
     check_indicator(indicator)
     settings: Settings = request.app.state.settings
     cache: ResponseCache[CachedTrend] = request.app.state.trend_cache
-    key = (rig_id, indicator, tooth, channel)
+    key = (rig_id, indicator, tooth, channel, campaign)
     version = cache.group_version(rig_id, settings.trend_cache_seconds)
     answer = cache.get(key, version) if version is not None else None
     if answer is None:
@@ -138,10 +145,12 @@ GZIP_LEVEL = 1
 
 
 def _load_trend(
-    db: Session, cache: ResponseCache[CachedTrend], key: tuple[str, str, int | None, str | None]
+    db: Session,
+    cache: ResponseCache[CachedTrend],
+    key: tuple[str, str, int | None, str | None, str | None],
 ) -> CachedTrend:
     """Check the rig's data version in the database; build the answer if it is not cached."""
-    rig_name, indicator, tooth, channel = key
+    rig_name, indicator, tooth, channel, campaign = key
     rig = rig_by_name(db, rig_name)
     # The rig's gear pair is part of the version: its tooth count sets the columns of the
     # answer, and a new pair changes which campaigns the trend covers.
@@ -156,7 +165,7 @@ def _load_trend(
     with cache.build_lock(key):  # concurrent misses of one key: built once
         answer = cache.get(key, version)
         if answer is None:
-            body = trend_json(db, rig, indicator, tooth, channel)
+            body = trend_json(db, rig, indicator, tooth, channel, campaign)
             etag = _etag(key, version)
             answer = CachedTrend(
                 etag=etag,
@@ -194,11 +203,12 @@ def _etag(*key: object) -> str:
 
 
 def trend_json(
-    db: Session, rig: Rig, indicator: str, tooth: int | None, channel: str | None
+    db: Session, rig: Rig, indicator: str, tooth: int | None, channel: str | None,
+    campaign: str | None = None,
 ) -> bytes:
     """The trend answer's JSON: one query into a records × teeth matrix, serialized without
     re-validation (the values come from the database; NaN and missing cells become null)."""
-    return trend_answer(db, rig, indicator, tooth, channel).model_dump_json().encode()
+    return trend_answer(db, rig, indicator, tooth, channel, campaign).model_dump_json().encode()
 
 
 @router.get(

@@ -82,10 +82,12 @@ class TrendRepository(Repository[ToothIndicator]):
         *,
         channel: str | None = None,
         pinion_teeth: int | None = None,
+        campaign_id: int | None = None,
     ) -> TrendMatrix:
         """:meth:`trend` of one channel as a records × teeth matrix.
 
-        Without ``channel``, the first channel by name that has values. Columns are
+        Without ``channel``, the first channel by name that has values. The records of the
+        rig's current gear pair, or of ``campaign_id`` alone (:meth:`channel_names`). Columns are
         ``[tooth]``, else teeth 1…``pinion_teeth``, else the teeth found; records are in
         ``taken_at`` order (then by id).
 
@@ -101,7 +103,7 @@ class TrendRepository(Repository[ToothIndicator]):
         query = sa.select(ti.record_id, ti.channel_id, ti.tooth, ti.value).where(
             ti.rig_id == rig_id, ti.indicator == indicator, ti.is_current.is_(True)
         )
-        names = self.channel_names(rig_id)
+        names = self.channel_names(rig_id, campaign_id)
         if tooth is not None:
             query = query.where(ti.tooth == tooth)
         query = query.where(
@@ -176,10 +178,20 @@ class TrendRepository(Repository[ToothIndicator]):
             )
         ]
 
-    def channel_names(self, rig_id: int) -> dict[int, str]:
+    def channel_names(self, rig_id: int, campaign_id: int | None = None) -> dict[int, str]:
         """Channel id → name for every campaign of the rig's current gear pair
         (:meth:`~storage.repositories.rigs.RigRepository.current_pair_campaign_ids`): the
-        channels a rig's trends cover."""
+        channels a rig's trends cover. With ``campaign_id``, that campaign's channels alone,
+        whichever pair it ran (an earlier pair's history stays within reach)."""
+        if campaign_id is not None:
+            return {
+                int(channel_id): str(name)
+                for channel_id, name in self.session.execute(
+                    sa.select(Channel.id, Channel.name)
+                    .join(Campaign, Campaign.id == Channel.campaign_id)
+                    .where(Campaign.rig_id == rig_id, Campaign.id == campaign_id)
+                )
+            }
         query = (
             sa.select(Channel.id, Channel.name, Campaign.manifest, Rig.pinion_teeth,
                       Rig.gear_teeth, Rig.tooth1_pitch_angle_deg)

@@ -96,3 +96,9 @@ def test_trends_prints_a_table_csv_and_json(
                  "--indicator", "kurtosis"]) == 0
     trend = json.loads(capsys.readouterr().out)
     assert trend["teeth"] == [None] and trend["scope"] == "record"
+    # one campaign, by name; a name the rig does not have is a clear error
+    assert main(["trends", "--rig", seeded.rig, "--db", url, "--campaign", seeded.campaign,
+                 "--tooth", "7"]) == 0
+    assert out.splitlines()[1:] == capsys.readouterr().out.splitlines()[1:]
+    assert main(["trends", "--rig", seeded.rig, "--db", url, "--campaign", "nowhere"]) != 0
+    assert "campaign 'nowhere' not found" in capsys.readouterr().err

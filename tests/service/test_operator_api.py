@@ -229,3 +229,37 @@ def test_a_new_gear_pair_on_a_rig_starts_its_own_tooth_views(api: Api) -> None:
     trend = api.get("/api/v1/rigs/rig-p/trends?indicator=mci_depth").json()
     assert trend["teeth"] == list(range(1, 21))
     assert [r["record_id"] for r in trend["records"]][:3] == first
+
+
+def test_an_earlier_gear_pair_stays_within_reach_of_the_trend(api: Api) -> None:
+    """``campaign=`` gives one campaign's trend numbered by the pair it ran, even when the rig
+    has moved on to another pair; the default stays the current pair's; a campaign of another
+    rig, or none, is 404; the cached answers of both scopes do not mix."""
+    first = _seed_pair(api, "pair-20", 20, 0, 3)
+    second = _seed_pair(api, "pair-17", 17, 3, 2)
+    default = api.get("/api/v1/rigs/rig-p/trends?indicator=mci_depth").json()
+    assert default["campaign"] is None and len(default["teeth"]) == 17
+    for indicator, columns in (("mci_depth", 20), ("kurtosis", 1)):
+        old = api.get(f"/api/v1/rigs/rig-p/trends?indicator={indicator}&campaign=pair-20").json()
+        assert old["campaign"] == "pair-20"
+        assert [r["record_id"] for r in old["records"]] == first, indicator
+        assert len(old["teeth"]) == columns and len(old["values"][0]) == columns
+    one_tooth = api.get("/api/v1/rigs/rig-p/trends?tooth=19&campaign=pair-20").json()
+    assert one_tooth["teeth"] == [19] and len(one_tooth["values"]) == 3
+    current = api.get("/api/v1/rigs/rig-p/trends?campaign=pair-17").json()
+    assert [r["record_id"] for r in current["records"]] == second
+    csv_text = api.client.get("/api/v1/rigs/rig-p/trends?campaign=pair-20&format=csv",
+                              headers=api.headers("viewer")).text
+    assert len(csv_text.strip().splitlines()) == 1 + len(first)
+    assert api.get("/api/v1/rigs/rig-p/trends").json()["teeth"] == list(range(1, 18))
+    with api.session() as session:  # a campaign of another rig
+        from storage.repositories import CampaignRepository
+
+        CampaignRepository(session).ensure(campaign_config("other", "rig-q", pinion_teeth=20))
+        session.commit()
+    for name in ("other", "nowhere"):
+        missing = api.client.get(f"/api/v1/rigs/rig-p/trends?campaign={name}",
+                                 headers=api.headers("viewer"))
+        assert missing.status_code == 404 and name in missing.json()["error"]["message"]
+    bad = api.client.get("/api/v1/rigs/rig-p/trends?campaign=a%2Fb", headers=api.headers("viewer"))
+    assert bad.status_code == 422

@@ -356,7 +356,7 @@ def test_concurrent_misses_build_one_answer(
 
     monkeypatch.setattr(rigs, "trend_json", slow_build)
     cache: queries.ResponseCache[rigs.CachedTrend] = queries.ResponseCache()
-    key = (RIG, "mci_depth", None, None)
+    key = (RIG, "mci_depth", None, None, None)
     answers: list[rigs.CachedTrend] = []
 
     def request() -> None:

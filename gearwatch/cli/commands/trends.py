@@ -1,4 +1,4 @@
-"""``gearwatch trends --rig RIG [--indicator NAME] [--tooth N] [--csv | --json]``."""
+"""``gearwatch trends --rig RIG [--indicator NAME] [--tooth N] [--campaign NAME] [--csv | --json]``."""
 
 from __future__ import annotations
 
@@ -20,6 +20,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--indicator", default="mci_depth", help="default mci_depth")
     parser.add_argument("--tooth", type=int, help="one pinion tooth")
     parser.add_argument("--channel", help="accelerometer channel (default: the first)")
+    parser.add_argument("--campaign", help="one campaign of the rig, numbered by the gear pair "
+                        "it ran (default: every campaign of the rig's current pair)")
     add_output_arguments(parser)
     parser.set_defaults(func=run)
 
@@ -38,7 +40,8 @@ def run(args: argparse.Namespace) -> int:
             rig = RigRepository(session).get_by_name(args.rig)
             if rig is None:
                 raise NotFound(f"rig {args.rig!r} not found")
-            trend = trend_data(session, rig, args.indicator, args.tooth, args.channel)
+            trend = trend_data(session, rig, args.indicator, args.tooth, args.channel,
+                               args.campaign)
     finally:
         engine.dispose()
     for record in trend["records"]:
@@ -56,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
         [r["record_id"], r["taken_at"][:16].replace("T", " "), r["label"], *values]
         for r, values in zip(trend["records"], trend["values"], strict=True)
     ]
-    print(f"{trend['rig_id']}: {trend['title']}{unit}, channel {trend['channel']}")
+    scope = f", campaign {trend['campaign']}" if trend["campaign"] else ""
+    print(f"{trend['rig_id']}: {trend['title']}{unit}, channel {trend['channel']}{scope}")
     print(text_table(["record", "taken at (UTC)", "label", *teeth], rows) if rows
           else "no accepted record")
     return 0
