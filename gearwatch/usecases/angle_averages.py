@@ -38,6 +38,20 @@ def gear_revolutions_from_pinion_grid(pinion_revs: np.ndarray, gear_samples_per_
     return flat[: whole * gear_samples_per_rev].reshape(whole, gear_samples_per_rev)
 
 
+def _gear_revolutions_kept(
+    revs: np.ndarray, accepted: np.ndarray, gear_spr: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The block's gear revolutions (:func:`gear_revolutions_from_pinion_grid`), which of them
+    are kept (none of their samples in a dropped pinion revolution) and the kept ones (no copy
+    when every pinion revolution was kept)."""
+    gear_revs = gear_revolutions_from_pinion_grid(revs, gear_spr)
+    if accepted.all():
+        return gear_revs, np.ones(gear_revs.shape[0], dtype=bool), gear_revs
+    sample_ok = np.repeat(accepted, revs.shape[1])[: gear_revs.size].reshape(gear_revs.shape)
+    gear_accepted = np.all(sample_ok, axis=1)
+    return gear_revs, gear_accepted, gear_revs[gear_accepted]
+
+
 @dataclass(frozen=True)
 class AngleAverages:
     pinion_average: np.ndarray
@@ -179,21 +193,13 @@ def angle_averages(
         rejected_defective += int(touched.sum())
         rejected_gaps += int(in_gap.sum())
         rejected_outliers += int(outliers.sum())
-        all_accepted = bool(accepted.all())
-        good = revs if all_accepted else revs[accepted]
+        good = revs if accepted.all() else revs[accepted]
         pinion_sumsq += np.einsum("ij,ij->j", good, good)
         sums, counts = revolution_group_sums(good, JACKKNIFE_GROUPS, pinion_count)
         group_sums += sums  # (and so the pinion sum)
         group_counts += counts
         pinion_count += good.shape[0]
-        gear_revs = gear_revolutions_from_pinion_grid(revs, gear_spr)
-        if all_accepted:
-            gear_accepted = np.ones(gear_revs.shape[0], dtype=bool)
-            gear_good = gear_revs
-        else:
-            sample_ok = np.repeat(accepted, pinion_spr)[: gear_revs.size].reshape(gear_revs.shape)
-            gear_accepted = np.all(sample_ok, axis=1)
-            gear_good = gear_revs[gear_accepted]
+        gear_revs, gear_accepted, gear_good = _gear_revolutions_kept(revs, accepted, gear_spr)
         if pinion_period is not None and gear_period is not None:
             first_index = 0 if len(plan) == 1 else round(first_rev * pinion_per_tach_rev)
             pinion_period.add(good, first_index + np.flatnonzero(accepted))
