@@ -29,6 +29,15 @@ Both sides are the best of ``--repeat`` fresh processes (the reference used to r
 ``repeat // 2`` times, once at ``--repeat 3``: its CPU time scatters from 2.7 to 4.6 s between
 single runs, mostly BLAS threads of its spline solve competing for the 2 cores).
 
+Measured 2026-11-28 (sixth session), idle 2-core machine, ``--whole-process --seconds 300
+--repeat 5``: ``gearwatch analyze`` 0.507 CPU s at the start (3.6× against 1.831), 0.460–0.466
+after two changes (4.6×, 4.0×, 4.1× against 2.109, 1.847, 1.931): no ``numpy.random`` import (the
+blocks that represent a long signal are spread deterministically,
+:func:`dsp.robust.spread_block_starts`, 10 ms) and no copies of a block whose revolutions are all
+kept (``angle_averages`` 0.215 → 0.19 s in one process). The ≥ 5× is still not met. Tried and
+dropped: the quintic evaluation with its passes fused in place (``out=`` everywhere, no floor
+pass) measured 3 % slower, in float32 2.6× slower.
+
 Measured 2026-11-28 (fourth session), idle 2-core machine, ``--whole-process --seconds 300
 --repeat 5``, three runs. Two changes: the CLI keeps freed memory for reuse
 (:func:`gearwatch.cli.main.keep_freed_memory`: with glibc's defaults every few-MB array of the
