@@ -36,7 +36,7 @@ blocks that represent a long signal are spread deterministically,
 :func:`dsp.robust.spread_block_starts`, 10 ms) and no copies of a block whose revolutions are all
 kept (``angle_averages`` 0.215 → 0.19 s in one process). The ≥ 5× is still not met. Tried and
 dropped: the quintic evaluation with its passes fused in place (``out=`` everywhere, no floor
-pass) measured 3 % slower, in float32 2.6× slower.
+pass) measured 3 % slower, in float32 1.9× slower.
 
 Measured 2026-11-28 (fourth session), idle 2-core machine, ``--whole-process --seconds 300
 --repeat 5``, three runs. Two changes: the CLI keeps freed memory for reuse
