@@ -248,10 +248,8 @@ def _check_record(path: Path, record: RecordData, campaign: Campaign) -> None:
         record.source = str(path)
 
 
-def file_sha256(path: str | Path, chunk_bytes: int = 1 << 20) -> str:
-    """SHA-256 hex digest of a file, read in ``chunk_bytes`` pieces (constant memory)."""
-    digest = hashlib.sha256()
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 hex digest of a file, streamed through one reused buffer (constant memory:
+    :func:`hashlib.file_digest`)."""
     with open(path, "rb") as stream:
-        while chunk := stream.read(chunk_bytes):
-            digest.update(chunk)
-    return digest.hexdigest()
+        return hashlib.file_digest(stream, "sha256").hexdigest()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -180,3 +181,35 @@ def test_a_cli_process_keeps_freed_block_arrays_for_reuse() -> None:
 
     assert kept_bytes("keep") >= 12 << 20
     assert kept_bytes("default") < 4 << 20
+
+
+def _subcommand_options(parser: argparse.ArgumentParser, command: str) -> list[tuple[str, ...]]:
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return [tuple(action.option_strings) or (action.dest,) for action in sub.choices[command]._actions]
+
+
+def test_a_named_command_gets_the_same_parser_without_importing_the_others() -> None:
+    """``gearwatch analyze …`` registers only its own module (start-up time); what it parses is
+    what the full parser would parse, and a name that is not a module's falls back to all."""
+    from gearwatch.cli.main import build_parser, command_modules, named_command
+
+    full = build_parser()
+    sub = next(a for a in full._actions if isinstance(a, argparse._SubParsersAction))
+    assert len(sub.choices) == len(command_modules())
+    for command in sub.choices:
+        assert _subcommand_options(build_parser(command), command) == _subcommand_options(
+            full, command), command
+    assert named_command(["analyze", "x.wav"]) == "analyze"
+    assert named_command(["--version"]) is None and named_command([]) is None
+    probe = ("import sys\nfrom gearwatch.cli.main import build_parser\n"
+             "parser = build_parser(sys.argv[1])\n"
+             "print(sorted(m for m in sys.modules if m.startswith('gearwatch.cli.commands.')))\n")
+    imported = {
+        name: subprocess.run([sys.executable, "-c", probe, name], capture_output=True, text=True,
+                             timeout=120, check=True).stdout.strip()
+        for name in ("analyze", "figure-mci", "nosuch")
+    }
+    assert imported["analyze"] == "['gearwatch.cli.commands.analyze']"
+    everything = str(sorted(command_modules()))
+    assert imported["figure-mci"] == everything  # registered by the module `figure`
+    assert imported["nosuch"] == everything  # argparse then names every valid choice
