@@ -7,13 +7,16 @@
  *   (no chart of the previous rig stays on screen while the next one loads);
  * - the heat map's colours span the full range of the values shown, with a colour bar;
  * - whole-record indicators are their own trend, never "tooth 0";
+ * - the rig's current gear pair is shown unless an earlier campaign is chosen, and the titles
+ *   then name that campaign (tooth 5 of one pinion is not tooth 5 of another);
  * - every value carries its unit, every record its label and date. */
 "use strict";
 
 const KEY_STORAGE = "gearwatch.apiKey";
 const el = (id) => document.getElementById(id);
 const state = {
-  key: null, me: null, rig: null, indicator: null, indicators: [], overview: [],
+  key: null, me: null, rig: null, campaign: "", campaigns: [], indicator: null, indicators: [],
+  overview: [],
   trend: null, alarms: [], rules: [], records: [], record: null, compare: null, tooth: null,
   curvePlot: null, trendPlot: null, alarmDetail: null, generation: 0,
 };
@@ -44,6 +47,14 @@ function forgetKey() {
 
 /* ---------- formatting ---------- */
 const rigPath = () => `/rigs/${encodeURIComponent(state.rig)}`;
+/* The trend's query: the indicator, and the campaign when one is chosen (else the current pair). */
+function trendQuery(indicator) {
+  const campaign = state.campaign ? `&campaign=${encodeURIComponent(state.campaign)}` : "";
+  return `${rigPath()}/trends?indicator=${encodeURIComponent(indicator)}${campaign}`;
+}
+const inCampaign = () => (state.campaign ? ` — campaign ${state.campaign}` : "");
+/* An alarm belongs on the views when no campaign is chosen, or it is of the chosen one. */
+const ofShownCampaign = (alarm) => !state.campaign || alarm.campaign_id === state.campaign;
 function info(name) {
   return state.indicators.find((i) => i.name === name) || { name, scope: "tooth", title: name, unit: "" };
 }
@@ -214,7 +225,7 @@ function renderOverview() {
 function openAlarmTeeth() {
   const teeth = new Map();
   for (const a of state.alarms) {
-    if (a.indicator !== state.indicator || a.state === "cleared") continue;
+    if (a.indicator !== state.indicator || a.state === "cleared" || !ofShownCampaign(a)) continue;
     const key = a.tooth === null ? "whole" : a.tooth;
     if (teeth.get(key) !== "alarm") teeth.set(key, a.state === "acknowledged" ? (a.severity || "alarm") : a.state);
   }
@@ -226,7 +237,7 @@ function drawHeatmap() {
   const trend = state.trend;
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   const meta = info(state.indicator), unit = unitOf(trend);
-  el("heatmap-title").textContent = `${meta.title}${unit ? " (" + unit + ")" : ""}`;
+  el("heatmap-title").textContent = `${meta.title}${unit ? " (" + unit + ")" : ""}${inCampaign()}`;
   const rig = state.overview.find((r) => r.rig_id === state.rig);
   if (!trend || !trend.records.length) {
     const hasRecords = rig && rig.accepted > 0;
@@ -436,7 +447,7 @@ function drawTrend(column, tooth) {
   if (!trend || column < 0) return;
   const meta = info(state.indicator), unit = unitOf(trend);
   const what = tooth === null ? "whole record" : `tooth ${tooth}`;
-  el("trend-title").textContent = `${what} — ${meta.title}${unit ? " (" + unit + ")" : ""}`;
+  el("trend-title").textContent = `${what} — ${meta.title}${unit ? " (" + unit + ")" : ""}${inCampaign()}`;
   const xs = trend.records.map((r) => Date.parse(r.taken_at) / 1000);
   const ys = trend.values.map((row) => row[column]);
   const series = [{ label: "taken at (UTC)" }, { label: what, stroke: "#b00020", width: 1.5, points: { show: true, size: 5 } }];
@@ -579,12 +590,26 @@ async function download(path, name) {
 
 /* ---------- loading a rig, an indicator ---------- */
 async function loadTrend() {
-  state.trend = await api(`${rigPath()}/trends?indicator=${encodeURIComponent(state.indicator)}`);
+  state.trend = await api(trendQuery(state.indicator));
+}
+
+/* The rig's campaigns, newest first, each with its pinion and gear teeth when its manifest has them. */
+function fillCampaigns() {
+  const select = el("campaign");
+  select.innerHTML = '<option value="">current gear pair</option>';
+  for (const c of state.campaigns) {
+    const rig = (c.manifest && c.manifest.rig) || {};
+    const teeth = rig.pinion_teeth ? ` (${rig.pinion_teeth}/${rig.gear_teeth} teeth)` : "";
+    const option = document.createElement("option");
+    option.value = c.campaign_id; option.textContent = `${c.campaign_id}${teeth} — ${day(c.created_at)}`;
+    select.appendChild(option);
+  }
+  select.value = state.campaigns.some((c) => c.campaign_id === state.campaign) ? state.campaign : "";
 }
 
 function startingTooth() {
   const trend = state.trend;
-  const open = state.alarms.filter((a) => a.indicator === state.indicator && a.tooth !== null && (a.state === "alarm" || a.state === "warning"));
+  const open = state.alarms.filter((a) => a.indicator === state.indicator && a.tooth !== null && ofShownCampaign(a) && (a.state === "alarm" || a.state === "warning"));
   if (open.length) return open.reduce((a, b) => (b.last_score > a.last_score ? b : a)).tooth;
   const row = trend.values[trend.values.length - 1];
   let tooth = trend.teeth[0], best = -Infinity;
@@ -602,8 +627,10 @@ async function switchIndicator(name, reselect = true) {
   if (isWhole(name)) selectWhole(); else selectTooth(startingTooth());
 }
 
-async function switchRig(name) {
-  state.rig = name;
+async function switchRig(name, campaign = "") {
+  const otherRig = name !== state.rig;
+  state.rig = name; state.campaign = campaign;
+  if (otherRig) { state.campaigns = []; fillCampaigns(); }  // not the previous rig's while loading
   resetAll();
   renderOverview();
   message("");
@@ -618,8 +645,13 @@ async function switchRig(name) {
     message(`rig ${name} has no tooth counts: showing a whole-record indicator (${info(state.indicator).title})`);
   }
   try {
+    state.campaigns = (await api(`/campaigns?rig_id=${encodeURIComponent(name)}`)).items
+      .sort((a, b) => b.created_at.localeCompare(a.created_at));
+    if (!state.campaigns.some((c) => c.campaign_id === state.campaign)) state.campaign = "";
+    fillCampaigns();
     state.rules = (await api(`${rigPath()}/alarm-rules`)).items;
-    state.records = (await api(`/records?rig_id=${encodeURIComponent(name)}&limit=1000`)).items
+    const ofCampaign = state.campaign ? `&campaign_id=${encodeURIComponent(state.campaign)}` : "";
+    state.records = (await api(`/records?rig_id=${encodeURIComponent(name)}${ofCampaign}&limit=1000`)).items
       .sort((a, b) => a.taken_at.localeCompare(b.taken_at));
     await loadTrend();
     if (generation !== state.generation) return;
@@ -679,7 +711,7 @@ async function start() {
   const wanted = fragment.get("rig");
   const rig = state.overview.find((r) => r.rig_id === wanted) || state.overview[0];
   select.value = rig.rig_id;
-  await switchRig(rig.rig_id);
+  await switchRig(rig.rig_id, rig.rig_id === wanted ? fragment.get("campaign") || "" : "");
   const alarmId = Number(fragment.get("alarm"));
   const alarm = state.alarms.find((a) => a.id === alarmId);
   if (alarm) await showAlarm(alarm, false);
@@ -702,13 +734,15 @@ function init() {
   };
   el("logout").onclick = forgetKey;
   el("rig").onchange = () => switchRig(el("rig").value);
+  el("campaign").onchange = () => switchRig(state.rig, el("campaign").value);
   el("indicator").onchange = () => switchIndicator(el("indicator").value);
   el("record").onchange = () => selectRecord(Number(el("record").value), null);
   el("compare").onchange = () => selectRecord(state.record, el("compare").value ? Number(el("compare").value) : null);
   el("alarm-state").onchange = renderAlarms;
   el("ack-form").onsubmit = acknowledge;
   el("ack-cancel").onclick = () => { el("ack-form").hidden = true; };
-  el("trend-csv").onclick = () => download(`${rigPath()}/trends?indicator=${encodeURIComponent(state.indicator)}&format=csv`, `${state.rig}-${state.indicator}.csv`);
+  el("trend-csv").onclick = () => download(`${trendQuery(state.indicator)}&format=csv`,
+    `${state.rig}${state.campaign ? "-" + state.campaign : ""}-${state.indicator}.csv`);
   el("alarms-csv").onclick = () => download(`/alarms?rig_id=${encodeURIComponent(state.rig)}&limit=1000&format=csv`, `alarms-${state.rig}.csv`);
   if (state.key) start(); else forgetKey();
 }

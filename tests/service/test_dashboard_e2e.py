@@ -44,6 +44,7 @@ SIM_RIG = "rig-1"
 SEEDED_SPALL_TOOTH = 7
 KURTOSIS_JUMP_DAY = 8
 TOOTHLESS_RECORDS = 6
+PAIRS = (("pair-20", 20, 3), ("pair-17", 17, 2))  # (campaign, pinion teeth, records), in order
 
 
 def _free_port() -> int:
@@ -109,6 +110,20 @@ def _seed_other_rigs(factory: Any) -> None:
             }))
         records.mark_accepted(record, result_analysis)
         records.add_result(record, result_analysis)
+        # a rig whose 20-tooth pinion was replaced by a 17-tooth one: two gear pairs
+        day = 0
+        for name, teeth, count in PAIRS:
+            pair = CampaignRepository(session).ensure(
+                campaign_config(name, "rig-p", pinion_teeth=teeth, gear_teeth=43))
+            for _ in range(count):
+                sha = f"{name}{day}".encode().hex().ljust(64, "0")[:64]
+                record = records.add(pair, sha256=sha, file_name=f"{name}-{day}.wav",
+                                     raw_location="/nonexistent",
+                                     taken_at=t0 + dt.timedelta(days=day), label=f"{name} {day}")
+                result_analysis = analysis(sha256=sha, teeth=teeth, curve_length=64 * teeth)
+                records.mark_accepted(record, result_analysis)
+                records.add_result(record, result_analysis)
+                day += 1
 
 
 @pytest.fixture(scope="module")
@@ -207,7 +222,7 @@ def test_opening_shows_every_rig_and_the_spalled_tooth_with_units_and_dates(
 ) -> None:
     rows = page.locator("#overview tbody tr")
     assert sorted(rows.nth(i).get_attribute("data-rig") for i in range(rows.count())) == sorted(
-        [site.sim_rig, "rig-a", "rig-k", "rig-t", "rig-w"]
+        [site.sim_rig, "rig-a", "rig-k", "rig-p", "rig-t", "rig-w"]
     )
     sim = page.locator(f"#overview tbody tr[data-rig='{site.sim_rig}']").inner_text()
     assert f"tooth {SPALL_TOOTH}" in sim and "alarm" in sim and "day 12" in sim
@@ -350,3 +365,32 @@ def test_a_tachless_rig_says_on_which_channels_its_tooth_numbers_hold(page: Any,
     assert ("angle from the mesh phase; teeth in the campaign's tach-less frame on 1 of 2 "
             "channels (not on a1)") in row
     assert "tach repair" not in row  # no tach: the synthetic pulses' repair list is not shown
+
+
+def test_an_earlier_gear_pair_is_shown_by_choosing_its_campaign(page: Any, site: Site) -> None:
+    """The rig's current pair by default; an earlier campaign on request, its own teeth and
+    records, and every title and the exported file saying which campaign it is."""
+    (old, old_teeth, old_records), (_new, new_teeth, _new_records) = PAIRS
+    _ready_after(page, lambda: page.click("#overview tbody tr[data-rig='rig-p']"))
+    assert page.input_value("#campaign") == ""
+    assert f"× {new_teeth} teeth" in page.inner_text("#heatmap-legend")
+    assert "campaign" not in page.inner_text("#heatmap-title")
+    options = page.locator("#campaign option").all_inner_texts()
+    assert options[0] == "current gear pair"
+    assert any(o.startswith(f"{old} ({old_teeth}/43 teeth) — ") for o in options), options
+    _ready_after(page, lambda: page.select_option("#campaign", old))
+    assert f"{old_records} accepted records × {old_teeth} teeth" in page.inner_text(
+        "#heatmap-legend")
+    assert page.inner_text("#heatmap-title").endswith(f"— campaign {old}")
+    assert page.inner_text("#trend-title").endswith(f"— campaign {old}")
+    records = page.locator("#record option").all_inner_texts()
+    assert len(records) == old_records and all(r.startswith(old) for r in records), records
+    with page.expect_download() as download_info:
+        page.click("#trend-csv")
+    assert old in download_info.value.suggested_filename
+    text = Path(download_info.value.path()).read_text()
+    assert len(text.splitlines()) == 1 + old_records
+    assert f"tooth {old_teeth} " in text.splitlines()[0]
+    # another rig forgets the choice
+    _ready_after(page, lambda: page.click("#overview tbody tr[data-rig='rig-a']"))
+    assert page.input_value("#campaign") == ""
