@@ -18,7 +18,12 @@ from gearwatch.usecases.ingest_file import parse_taken_at, process_file
 from ingest.manifest import load_manifest
 from storage.db import open_database, session_scope
 from storage.raw_store import RawStore
-from storage.repositories import AlarmRepository, AuditRepository, RigRepository
+from storage.repositories import (
+    AlarmRepository,
+    AuditRepository,
+    CampaignRepository,
+    RigRepository,
+)
 
 if TYPE_CHECKING:
     from sqlalchemy.orm import Session, sessionmaker
@@ -38,6 +43,9 @@ class ReplaySummary:
     alarm_changes: int = 0
     internal_errors: int = 0
     open_alarms: list[str] = dataclasses.field(default_factory=list)
+    """The campaign's open alarms, one line each."""
+    other_open_alarms: int = 0
+    """Open alarms of the rig's other campaigns (an earlier gear pair, another test)."""
     reevaluated: bool = False
     """The rig's alarms were recomputed from the current results after the ingestion."""
 
@@ -50,9 +58,12 @@ class ReplaySummary:
         out.append(
             f"alarms{' (re-evaluated from the current results)' if self.reevaluated else ''}: "
             f"{self.alarms_raised} raised, {self.alarm_changes} state change(s); "
-            f"{len(self.open_alarms)} open"
+            f"{len(self.open_alarms)} open in this campaign"
         )
         out.extend(f"  {line}" for line in self.open_alarms)
+        if self.other_open_alarms:
+            out.append(f"  (and {self.other_open_alarms} open in the rig's other campaigns: "
+                       f"gearwatch alarms --rig {self.rig} --open)")
         return out
 
 
@@ -113,24 +124,31 @@ def replay_campaign(
                     "gearwatch replay", "alarms.reevaluate", f"rig:{rig.name}",
                     {"alarm_changes": len(changes)},
                 )
-    summary.open_alarms = open_alarm_lines(session_factory, campaign.rig.id)
+    summary.open_alarms, summary.other_open_alarms = open_alarm_lines(
+        session_factory, campaign.rig.id, campaign.id)
     return summary
 
 
-def open_alarm_lines(session_factory: sessionmaker[Session], rig_name: str) -> list[str]:
+def open_alarm_lines(
+    session_factory: sessionmaker[Session], rig_name: str, campaign_name: str
+) -> tuple[list[str], int]:
+    """The campaign's open alarms, one line each, and how many the rig's other campaigns hold
+    (a replay's summary speaks of the campaign it replayed)."""
     with session_scope(session_factory) as session:
         rig = RigRepository(session).get_by_name(rig_name)
-        if rig is None:
-            return []
+        stored = CampaignRepository(session).get_by_name(campaign_name)
+        if rig is None or stored is None:
+            return [], 0
+        alarms = AlarmRepository(session)
         lines = []
-        for alarm in AlarmRepository(session).list(rig_id=rig.id, open_only=True, limit=None):
+        for alarm in alarms.list(rig_id=rig.id, open_only=True, limit=None, campaign_id=stored.id):
             where = f"tooth {alarm.tooth}" if alarm.tooth else "whole record"
             lines.append(
                 f"#{alarm.id} {alarm.state:<12} {alarm.indicator} {where} on {alarm.channel.name}, "
                 f"raised {alarm.raised_at:%Y-%m-%d %H:%M} UTC, last {alarm.last_score:+.1f} "
                 "baseline units"
             )
-        return lines
+        return lines, alarms.count(rig_id=rig.id, open_only=True) - len(lines)
 
 
 

@@ -20,6 +20,7 @@ from storage.models import (
     AlarmEvent,
     AlarmRule,
     AlarmTrack,
+    Channel,
     Record,
     utcnow,
 )
@@ -187,11 +188,16 @@ class AlarmRepository(Repository[Alarm]):
         open_only: bool = False,
         limit: int | None = 100,
         offset: int = 0,
+        campaign_id: int | None = None,
     ) -> builtins.list[Alarm]:
-        """Alarms newest first, filtered by rig and state(s); ``open_only`` = not cleared."""
+        """Alarms newest first, filtered by rig, campaign (through the alarm's channel) and
+        state(s); ``open_only`` = not cleared."""
         query = sa.select(Alarm).options(selectinload(Alarm.channel))
         if rig_id is not None:
             query = query.where(Alarm.rig_id == rig_id)
+        if campaign_id is not None:
+            query = query.join(Channel, Alarm.channel_id == Channel.id).where(
+                Channel.campaign_id == campaign_id)
         if state is not None:
             states = [state] if isinstance(state, str) else list(state)
             bad = set(states) - set(ALARM_STATES)

@@ -80,6 +80,18 @@ def test_replay_raises_alarms_and_lists_them(db_engine: sa.Engine, tmp_path) -> 
     assert "raised 2024-03-10 08:00 UTC" in summary.open_alarms[0]
     with session_scope(factory) as session:
         assert AlarmRepository(session).count(open_only=True) == 20
+
+    # A second campaign on the rig (a later test) that raises nothing: its summary speaks of
+    # its own alarms and only counts the rig's others, and the first campaign's still lists its own.
+    make_campaign(tmp_path / "later", [1.0] * 10, name="camp-b")
+    later = replay_campaign(tmp_path / "later" / "campaign.toml", factory,
+                            RawStore(tmp_path / "store"), analyzer=FakeAnalyzer(), progress=False)
+    assert later.alarms_raised == 0 and later.open_alarms == [] and later.other_open_alarms == 20
+    assert later.lines()[-2].endswith("0 open in this campaign")
+    assert "and 20 open in the rig's other campaigns" in later.lines()[-1]
+    again = replay_campaign(tmp_path / "camp" / "campaign.toml", factory,
+                            RawStore(tmp_path / "store"), analyzer=FakeAnalyzer(), progress=False)
+    assert len(again.open_alarms) == 20 and again.other_open_alarms == 0
     assert campaign.id in summary.lines()[0]
 
 
@@ -289,4 +301,4 @@ def test_watch_command_ingests_dropped_files_until_interrupted(tmp_path, stop_si
             pytest.fail(f"watch did not stop within 120 s of {stop_signal}; its stacks:\n{err[-6000:]}")
     assert process.returncode == 0, err
     assert "day00.wav: accepted" in out and "dropped.wav: accepted" in out
-    assert "ingested: 2 accepted" in out
+    assert "ingested: 2 accepted" in out and "open in this campaign: 0" in out

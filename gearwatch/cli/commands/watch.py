@@ -102,21 +102,26 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:  # a second Ctrl-C while a file was being ingested
         print("stopped", file=sys.stderr)
     finally:
-        campaign_rig = _rig_name(folder)
-        lines = open_alarm_lines(factory, campaign_rig) if campaign_rig else []
+        names = _rig_and_campaign(folder)
+        lines, others = open_alarm_lines(factory, *names) if names else ([], 0)
         engine.dispose()
     counts = ", ".join(f"{n} {k}" for k, n in sorted(watcher.counts.items())) or "nothing new"
-    print(f"ingested: {counts}; alarms raised: {watcher.alarms_raised}; open: {len(lines)}")
+    print(f"ingested: {counts}; alarms raised: {watcher.alarms_raised}; "
+          f"open in this campaign: {len(lines)}")
     for line in lines:
         print(f"  {line}")
+    if names and others:
+        print(f"  (and {others} open in the rig's other campaigns: "
+              f"gearwatch alarms --rig {names[0]} --open)")
     return 0
 
 
-def _rig_name(folder: Path) -> str | None:
+def _rig_and_campaign(folder: Path) -> tuple[str, str] | None:
     from gearwatch.floor.errors import InputError
     from ingest.manifest import load_manifest
 
     try:
-        return load_manifest(folder / "campaign.toml", check_files=False).rig.id
+        campaign = load_manifest(folder / "campaign.toml", check_files=False)
     except InputError:
         return None
+    return campaign.rig.id, campaign.id
