@@ -500,6 +500,7 @@ PARTS = {
     "held-out-4": range(40000, 40200),
     "held-out-5": range(50000, 50200),
     "held-out-6": range(60000, 60200),
+    "held-out-7": range(70000, 70200),
 }
 """``held-out-2``: a second held-out range, first run after the change detector's revision that
 followed a look at ``held-out`` (so that one part stays unseen while the method was changed).

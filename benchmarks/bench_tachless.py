@@ -22,7 +22,8 @@ Scored (the tach is used only to score):
 * **alignment** per tach-less day after the first: *right* when its campaign-frame pinion average
   sits where the tach says (the shift between its campaign-frame and tach-frame averages equals
   the reference day's within half a mesh period), *refused*, or *wrong*;
-* **alignment by the tach's angle** (``alignment_by_pulses``, ``pulse_offsets_teeth``): the same
+* **alignment by the tach's angle** (``alignment_by_pulses``, ``pulse_offsets_teeth``, and
+  ``pulse_evidence``: each such day's separation z, sector-pattern z and speed variation): the same
   days scored by where the tach puts sample 0 of the campaign-frame average — the circular mean,
   over the record's synthetic pulses, of the tach's angle at each, moved by the frame's
   ``pinion_delay_samples`` — against the founding day's; *right* within half a tooth. It does not
@@ -354,6 +355,7 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
     pulse_reference: float | None = None
     by_pulses: list[str] = []
     pulse_offsets: list[float] = []  # teeth, the campaign frame against the founding day's
+    pulse_evidence: list[list[Any]] = []  # per entry of by_pulses: separation z, sector z, variation
     angles: list[list[Any]] = []  # per tach-less day: harmonic, drift pass, speed variation
     speeds: list[dict[str, float]] = []  # GW_SPEED_STUDY: the spectrum's speed against the tach's
     spm = params.samples_per_mesh
@@ -416,6 +418,9 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
             off_teeth = ((angle - pulse_reference + 0.5) % 1.0 - 0.5) * spec.pinion_teeth
             by_pulses.append("right" if abs(off_teeth) < 0.5 else "wrong")
             pulse_offsets.append(round(off_teeth, 2))
+            pinion = frame.get("pinion") or {}
+            pulse_evidence.append([pinion.get("separation_z"), pinion.get("sector_pattern_z"),
+                                   None if not q else round(float(q["speed_variation"]), 4)])
         delay = _delay_between(channel.curves["pinion_average"].astype(np.float64),
                                tach_result.channels[0].curves["pinion_average"].astype(np.float64))
         if reference_delay is None:
@@ -445,7 +450,8 @@ def run_campaign(spec: Spec, seconds: float, cache: Path, hint: bool = True,
         "seed": spec.seed, "simulator": simulator, "teeth": [spec.pinion_teeth, spec.gear_teeth],
         "noise_ratio": round(spec.noise_ratio, 2), "spall_tooth": spec.spall_tooth,
         "onset_day": spec.onset_day, "alignment": alignment, "alignment_by_pulses": by_pulses,
-        "pulse_offsets_teeth": pulse_offsets, "angles": angles, "speeds": speeds,
+        "pulse_offsets_teeth": pulse_offsets, "pulse_evidence": pulse_evidence,
+        "angles": angles, "speeds": speeds,
         "margins": margins,
         "tach_first_alarm": [tach_day, tach_tooth], "tachless_first_alarm": [tl_day, tl_tooth],
         "product_tach_first_alarm": [product_tach_day, product_tach_tooth],
