@@ -8,27 +8,14 @@ noise of the evidence *from the record itself* and expresses every tooth in unit
 
 Standard error: delete-a-group jackknife
 ----------------------------------------
-The revolutions of a record are cut into ``K`` contiguous blocks (revolution ``n`` of ``N`` →
-block ``⌊n·K/N⌋``) whose sums the pipeline keeps. Leaving block ``j`` out gives an average of
+The revolutions of a record are dealt into ``K`` interleaved groups (revolution ``r`` → group
+``r mod K``) whose sums the pipeline keeps. Leaving group ``j`` out gives an average of
 ``(K−1)/K`` of the revolutions, the evidence ``d₍ⱼ₎`` is computed on it exactly as on the full
 average, and
 
     SE(d) = √((K−1)/K · Σⱼ (d₍ⱼ₎ − d̄)²)
 
-(the delete-a-group jackknife, Efron 1982 / Quenouille). Contiguous blocks, not interleaved
-groups (``r mod K``, until 2026-11-28): on a steady record the two are alike (the revolutions'
-noise is exchangeable; the healthy scores' spread on the benchmark's 30-revolution campaigns was
-2.15 against 2.20), but when a tooth's evidence moves *within* the record — a speed that sweeps
-through a resonance of the path, a load that changes — interleaved groups all see the same mix
-and the SE leaves the movement out, while blocks see it. That movement is what the same tooth
-does from one day to the next, so it belongs in the evidence's uncertainty: on a healthy rig
-whose speed swept 14–21 % within each 10-s record (``physics.independent.random_campaign``
-seed 9821 with its tachometer), the highest healthy tooth scored 3–14 a day (above 8 on four of
-seven days) and the ``score`` rule raised an alarm; with blocks 2–7, and nothing was raised. On
-the project simulator's 300-revolution benchmark records blocks alone made healthy scores spread
-*more* (SD 9.0 against 5.9): the SE of a long record leaves out how much a tooth moves from day
-to day either way, which the ``score`` rule's spread floor now allows for
-(:mod:`detection.default_rules`). Unlike sub-averages of ``1/K`` of the
+(the delete-a-group jackknife, Efron 1982 / Quenouille). Unlike sub-averages of ``1/K`` of the
 revolutions, the leave-one-out averages have almost the noise level of the full average, so the
 non-linear MCI (a log-spectrum, a median filter, a maximum over a sector) is evaluated where it
 is evaluated on the record, and the jackknife's bias for such statistics stays small. The jackknife is known to
@@ -81,17 +68,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 JACKKNIFE_GROUPS = 8
-"""Blocks of revolutions for the jackknife SE (revolution ``n`` of ``N`` → block ``⌊n·K/N⌋``).
+"""Groups of revolutions for the jackknife SE (revolution ``r`` → group ``r mod K``).
 
 Eight leaves 7 degrees of freedom for the SE (its own relative error ≈ 1/√14 ≈ 27 %) at eight
 extra MCI evaluations per channel (≈ 2 ms for an 80-tooth average); records have ≥ 20
 revolutions, so each group holds at least 2."""
-
-FINE_BLOCKS_PER_GROUP = 8
-"""A record's revolutions are first summed in ``K × 8`` contiguous fine blocks by revolution
-number (:func:`revolution_block_sums`), and these are merged into the ``K`` blocks of the
-jackknife once the record's accepted revolutions are known (:func:`merge_blocks`): a long run
-of rejected revolutions (a dropout) then leaves no block empty or small."""
 
 JACKKNIFE_INFLATION = 1.45
 """Measured ratio of the K = 8 jackknife SE of the evidence to its actual SD (module docstring)."""
@@ -299,63 +280,42 @@ def standout_tooth(
     return best + 1 if values[best] > threshold else None
 
 
-def revolution_block_sums(
-    revolutions: ArrayLike, numbers: ArrayLike, total: int, groups: int = JACKKNIFE_GROUPS
+def revolution_group_sums(
+    revolutions: ArrayLike, groups: int = JACKKNIFE_GROUPS, first: int = 0
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Sums and counts of contiguous blocks of revolutions: revolution number ``n`` (of
-    ``total`` in the record) → block ``⌊n·K / total⌋`` (clipped to the last block).
+    """Sums and counts of the interleaved groups of revolutions (revolution ``r`` → ``(first + r) mod K``).
 
-    ``numbers`` (increasing) are the record's numbers of the rows: a block of a longer record,
-    with its rejected revolutions left out, adds its part; the sums of the parts are the
-    record's. Each block is one slice of the rows: no copy of the revolutions.
+    Parameters
+    ----------
+    revolutions : array_like of float, shape (R, N)
+        One revolution per row.
+    groups : int
+        ``K``.
+    first : int
+        The record's number of the first row (a block of a longer record).
+
+    Returns
+    -------
+    sums : ndarray of float64, shape (K, N)
+    counts : ndarray of int64, shape (K,)
 
     Examples
     --------
-    >>> sums, counts = revolution_block_sums([[1.0], [2.0], [3.0], [4.0]], [0, 1, 2, 3], 4, groups=2)
+    >>> sums, counts = revolution_group_sums([[1.0], [2.0], [3.0]], groups=2)
     >>> sums.ravel().tolist(), counts.tolist()
-    ([3.0, 7.0], [2, 2])
+    ([4.0, 2.0], [2, 1])
+    >>> sums, counts = revolution_group_sums([[1.0], [2.0], [3.0]], groups=2, first=1)
+    >>> sums.ravel().tolist(), counts.tolist()
+    ([2.0, 4.0], [1, 2])
     """
     rows = np.asarray(revolutions, dtype=np.float64)
-    index = np.asarray(numbers, dtype=np.int64)
-    if rows.ndim != 2 or index.shape != (rows.shape[0],):
-        raise ValueError(f"revolutions must be (R, N) with R numbers, got {rows.shape}, {index.shape}")
-    if np.any(np.diff(index) < 0):
-        raise ValueError("revolution numbers must be increasing")
+    if rows.ndim != 2:
+        raise ValueError(f"revolutions must be (R, N), got shape {rows.shape}")
     groups = int(groups)
-    block = np.minimum(index * groups // max(int(total), 1), groups - 1)
     sums = np.zeros((groups, rows.shape[1]))
-    counts = np.bincount(block, minlength=groups).astype(np.int64)
-    edges = np.concatenate(([0], np.cumsum(counts)))
-    for g in np.flatnonzero(counts):
-        sums[g] = rows[edges[g] : edges[g + 1]].sum(axis=0)
-    return sums, counts
-
-
-def merge_blocks(
-    sums: ArrayLike, counts: ArrayLike, groups: int = JACKKNIFE_GROUPS
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Contiguous fine blocks merged into ``groups`` contiguous blocks of nearly equal counts.
-
-    Fine block ``b`` holds ``counts[b]`` revolutions centred at ``c_b`` on the cumulative count
-    ``M``; it goes to block ``⌊c_b·K / M⌋``.
-
-    Examples
-    --------
-    >>> sums, counts = merge_blocks([[1.0], [2.0], [0.0], [0.0], [3.0], [4.0]], [1, 1, 0, 0, 1, 1], 2)
-    >>> sums.ravel().tolist(), counts.tolist()
-    ([3.0, 7.0], [2, 2])
-    """
-    fine = np.asarray(sums, dtype=np.float64)
-    fine_counts = np.asarray(counts, dtype=np.int64)
-    if fine.ndim != 2 or fine_counts.shape != (fine.shape[0],):
-        raise ValueError(f"sums must be (B, N) and counts (B,), got {fine.shape}, {fine_counts.shape}")
-    groups = int(groups)
-    total = int(fine_counts.sum())
-    centre = np.cumsum(fine_counts) - 0.5 * fine_counts
-    block = np.minimum((centre * groups / max(total, 1)).astype(np.int64), groups - 1)
-    merged = np.zeros((groups, fine.shape[1]))
-    merged_counts = np.zeros(groups, dtype=np.int64)
-    for b in np.flatnonzero(fine_counts):
-        merged[block[b]] += fine[b]
-        merged_counts[block[b]] += fine_counts[b]
-    return merged, merged_counts
+    # one strided sum of rows per group: no copy of the revolutions (np.add.at row by row was
+    # ~20× slower, a padded copy one more pass over them)
+    for j in range(min(groups, rows.shape[0])):
+        sums[(first + j) % groups] = rows[j::groups].sum(axis=0)
+    counts = np.bincount((first + np.arange(rows.shape[0])) % groups, minlength=groups)
+    return sums, counts.astype(np.int64)

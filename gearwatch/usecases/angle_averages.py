@@ -20,12 +20,7 @@ from dsp.robust import (
     revolutions_overlapping,
 )
 from dsp.shaftperiod import PeriodSums, PeriodSumsAccumulator
-from dsp.toothscore import (
-    FINE_BLOCKS_PER_GROUP,
-    JACKKNIFE_GROUPS,
-    merge_blocks,
-    revolution_block_sums,
-)
+from dsp.toothscore import JACKKNIFE_GROUPS, revolution_group_sums
 
 
 def gear_revolutions_from_pinion_grid(pinion_revs: np.ndarray, gear_samples_per_rev: int) -> np.ndarray:
@@ -72,9 +67,8 @@ class AngleAverages:
     """Mean power of the accepted revolutions about the average (non-synchronous power per
     revolution), ``Σ_i mean((rev_i − avg)²) / (N − 1)``."""
     pinion_group_sums: np.ndarray
-    """(JACKKNIFE_GROUPS, pinion_spr): sums of the accepted pinion revolutions in K contiguous
-    blocks of the record of nearly equal counts (:func:`dsp.toothscore.merge_blocks`; the
-    jackknife SE of the tooth evidence)."""
+    """(JACKKNIFE_GROUPS, pinion_spr): sums of the accepted pinion revolutions r with
+    r mod K = group (the jackknife SE of the tooth evidence, :mod:`dsp.toothscore`)."""
     pinion_group_counts: np.ndarray
     rejected_tach_gaps: int = 0
     """Pinion revolutions dropped because their angle rests on bridged tach pulses
@@ -97,24 +91,6 @@ def _revolution_bounds_s(
         return np.empty((0, 2))
     step = times[:, -1] - times[:, -2]
     return np.stack([times[:, 0], times[:, -1] + step], axis=1)
-
-
-def _block_plan(
-    pulse_times_s: np.ndarray, pulses_per_rev: int, sample_rate_hz: float,
-    hunting_tach_revs: int, block_samples: int,
-) -> list[tuple[int, int, bool]]:
-    """(first tach revolution, end, is the last) of each block of whole hunting periods that
-    :func:`angle_averages` resamples at a time; one block when the record is short enough."""
-    whole_tach_revs = (pulse_times_s.size - 1) // pulses_per_rev
-    seconds_per_tach_rev = (pulse_times_s[-1] - pulse_times_s[0]) / max(
-        (pulse_times_s.size - 1) / pulses_per_rev, 1e-12
-    )
-    samples_per_hunting = hunting_tach_revs * seconds_per_tach_rev * sample_rate_hz
-    block_tach_revs = hunting_tach_revs * max(1, int(block_samples // max(samples_per_hunting, 1)))
-    if whole_tach_revs <= block_tach_revs + hunting_tach_revs:
-        return [(0, whole_tach_revs, True)]
-    edges = list(range(0, whole_tach_revs, block_tach_revs))
-    return [(r0, min(r0 + block_tach_revs, whole_tach_revs), r0 == edges[-1]) for r0 in edges]
 
 
 def angle_averages(
@@ -155,22 +131,28 @@ def angle_averages(
     revolutions are true ones.
     """
     whole_tach_revs = (pulse_times_s.size - 1) // pulses_per_rev
-    plan = _block_plan(pulse_times_s, pulses_per_rev, sample_rate_hz, hunting_tach_revs,
-                       block_samples)
-    # the jackknife's fine blocks: revolution n of the record's N → ⌊n·B/N⌋ (dsp.toothscore)
-    expected_pinion_revs = max(1, int(whole_tach_revs * pinion_per_tach_rev))
+    seconds_per_tach_rev = (pulse_times_s[-1] - pulse_times_s[0]) / max(
+        (pulse_times_s.size - 1) / pulses_per_rev, 1e-12
+    )
+    samples_per_hunting = hunting_tach_revs * seconds_per_tach_rev * sample_rate_hz
+    block_tach_revs = hunting_tach_revs * max(1, int(block_samples // max(samples_per_hunting, 1)))
     pinion_sumsq = np.zeros(pinion_spr)
     gear_sum = np.zeros(gear_spr)
     pinion_count = gear_count = rejected_defective = rejected_outliers = rejected_gaps = 0
     spans = defects.spans()
     gaps_s = np.empty((0, 2)) if tach_gaps_s is None else np.asarray(tach_gaps_s, float).reshape(-1, 2)
     margin_s = 4.0 / sample_rate_hz  # the quintic spline's stencil reaches 3 samples
-    fine_blocks = JACKKNIFE_GROUPS * FINE_BLOCKS_PER_GROUP
-    fine_sums = np.zeros((fine_blocks, pinion_spr))
-    fine_counts = np.zeros(fine_blocks, dtype=np.int64)
+    # jackknife groups: accepted revolution r (counted over the record) goes to group r mod K
+    group_sums = np.zeros((JACKKNIFE_GROUPS, pinion_spr))
+    group_counts = np.zeros(JACKKNIFE_GROUPS, dtype=np.int64)
     pinion_period = PeriodSumsAccumulator(pinion_spr, period_moduli) if period_moduli else None
     gear_period = PeriodSumsAccumulator(gear_spr, period_moduli) if period_moduli else None
     gear_index = 0  # record number of the block's first gear revolution
+    if whole_tach_revs <= block_tach_revs + hunting_tach_revs:
+        plan = [(0, whole_tach_revs, True)]
+    else:
+        edges = list(range(0, whole_tach_revs, block_tach_revs))
+        plan = [(r0, min(r0 + block_tach_revs, whole_tach_revs), r0 == edges[-1]) for r0 in edges]
     for first_rev, end_rev, last in plan:
         if len(plan) == 1:
             start, stop = 0, samples.size
@@ -213,20 +195,18 @@ def angle_averages(
         rejected_outliers += int(outliers.sum())
         good = revs if accepted.all() else revs[accepted]
         pinion_sumsq += np.einsum("ij,ij->j", good, good)
-        first_index = 0 if len(plan) == 1 else round(first_rev * pinion_per_tach_rev)
-        sums, counts = revolution_block_sums(
-            good, first_index + np.flatnonzero(accepted), expected_pinion_revs, fine_blocks)
-        fine_sums += sums  # (and so the pinion sum)
-        fine_counts += counts
+        sums, counts = revolution_group_sums(good, JACKKNIFE_GROUPS, pinion_count)
+        group_sums += sums  # (and so the pinion sum)
+        group_counts += counts
         pinion_count += good.shape[0]
         gear_revs, gear_accepted, gear_good = _gear_revolutions_kept(revs, accepted, gear_spr)
         if pinion_period is not None and gear_period is not None:
+            first_index = 0 if len(plan) == 1 else round(first_rev * pinion_per_tach_rev)
             pinion_period.add(good, first_index + np.flatnonzero(accepted))
             gear_period.add(gear_good, gear_index + np.flatnonzero(gear_accepted))
         gear_index += gear_revs.shape[0]
         gear_sum += gear_good.sum(axis=0)
         gear_count += gear_good.shape[0]
-    group_sums, group_counts = merge_blocks(fine_sums, fine_counts, JACKKNIFE_GROUPS)
     pinion_average = group_sums.sum(axis=0) / max(pinion_count, 1)
     residual_power = (
         float(np.mean(pinion_sumsq - pinion_count * pinion_average**2)) / (pinion_count - 1)

@@ -11,8 +11,7 @@ from dsp.toothscore import (
     evidence_standard_error,
     jackknife_standard_error,
     leave_one_out_averages,
-    merge_blocks,
-    revolution_block_sums,
+    revolution_group_sums,
     standout_threshold,
     standout_tooth,
     tooth_scores,
@@ -31,7 +30,7 @@ def mesh_revolutions(rng: np.random.Generator, teeth: int, revolutions: int, noi
 
 def chain(revolutions: np.ndarray, teeth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pipeline's per-tooth chain: evidence of the average, jackknife SE, score."""
-    sums, counts = revolution_block_sums(revolutions, np.arange(len(revolutions)), len(revolutions))
+    sums, counts = revolution_group_sums(revolutions)
     stack = np.vstack([revolutions.mean(axis=0), leave_one_out_averages(sums, counts)])
     curves = moving_cepstrum_integral(stack, SAMPLES_PER_MESH).filtered
     evidence = per_tooth_evidence(curves, teeth, 0.0, window_samples=SAMPLES_PER_MESH)
@@ -46,66 +45,25 @@ def test_jackknife_of_a_mean_is_the_textbook_standard_error() -> None:
     assert float(jackknife_standard_error(replicates)) == pytest.approx(x.std(ddof=1) / np.sqrt(12))
 
 
-def test_leave_one_out_averages_of_blocks() -> None:
+def test_leave_one_out_averages_of_groups() -> None:
     revolutions = np.random.default_rng(2).standard_normal((10, 5))
-    sums, counts = revolution_block_sums(revolutions, np.arange(10), 10, groups=4)
-    assert counts.tolist() == [3, 2, 3, 2]  # revolution n → block ⌊4n/10⌋
+    sums, counts = revolution_group_sums(revolutions, groups=4)
     loo = leave_one_out_averages(sums, counts)
-    assert np.allclose(loo[1], np.delete(revolutions, [3, 4], axis=0).mean(axis=0))
+    assert np.allclose(loo[1], np.delete(revolutions, [1, 5, 9], axis=0).mean(axis=0))
 
 
-def test_block_sums_of_parts_add_up_to_the_whole_record() -> None:
-    # the pipeline accumulates the blocks part by part, its rejected revolutions left out
+def test_group_sums_of_blocks_add_up_to_the_whole_record() -> None:
+    # the pipeline accumulates the groups block by block (first = the block's first revolution)
     revolutions = np.random.default_rng(3).standard_normal((23, 7))
-    kept = np.ones(23, dtype=bool)
-    kept[[2, 9, 10, 22]] = False
-    numbers = np.flatnonzero(kept)
-    whole_sums, whole_counts = revolution_block_sums(revolutions[kept], numbers, 23, groups=5)
+    whole_sums, whole_counts = revolution_group_sums(revolutions, groups=5)
     sums, counts = np.zeros((5, 7)), np.zeros(5, dtype=np.int64)
     for start, stop in ((0, 3), (3, 4), (4, 15), (15, 23)):
-        part = numbers[(numbers >= start) & (numbers < stop)]
-        s, c = revolution_block_sums(revolutions[part], part, 23, groups=5)
+        s, c = revolution_group_sums(revolutions[start:stop], groups=5, first=start)
         sums += s
         counts += c
     assert np.allclose(sums, whole_sums) and np.array_equal(counts, whole_counts)
-    for block in range(5):
-        members = [n for n in numbers if n * 5 // 23 == block]
-        assert np.allclose(whole_sums[block], revolutions[members].sum(axis=0))
-    with pytest.raises(ValueError, match="increasing"):
-        revolution_block_sums(revolutions[:3], [2, 1, 0], 23)
-
-
-def test_a_dropout_leaves_no_block_of_the_jackknife_empty() -> None:
-    # 64 fine blocks of 3 revolutions, a quarter of them empty in the middle (a long dropout):
-    # the 8 merged blocks hold 18 revolutions each, in record order, and nothing is lost
-    counts = np.full(64, 3)
-    counts[20:36] = 0
-    sums = np.arange(64, dtype=float)[:, np.newaxis] * counts[:, np.newaxis]
-    merged, merged_counts = merge_blocks(sums, counts, 8)
-    assert merged_counts.tolist() == [18] * 8
-    assert merged.sum() == pytest.approx(sums.sum())
-    kept = np.flatnonzero(counts)
-    assert merged[0, 0] == pytest.approx(3 * kept[:6].sum())  # the first six kept fine blocks
-
-
-def test_evidence_that_moves_within_the_record_is_uncertain_evidence() -> None:
-    """A tooth whose well is there in half of the record only (a speed sweeping through a
-    resonance of the path brings it out; the next day's sweep will do otherwise) does not stand
-    out as one with the same mean that is there in every revolution: the jackknife's blocks see
-    the movement. (Interleaved groups, the former choice, all see the same mix: on five seeds
-    both shapes scored 13.4 with them; with blocks 12.1 and 5.4.)"""
-    rng = np.random.default_rng(14)
-    teeth = 20
-    centre = 6 * SAMPLES_PER_MESH
-    scores = {}
-    for kind in ("steady", "half of the record"):
-        revolutions = mesh_revolutions(rng, teeth, 48, noise=0.3)
-        depth = np.full(48, 0.6) if kind == "steady" else np.where(np.arange(48) < 24, 0.0, 1.2)
-        revolutions[:, centre - 4] += depth
-        revolutions[:, centre + 4] -= depth
-        scores[kind] = chain(revolutions, teeth)[2][6]
-    assert scores["steady"] > standout_threshold(teeth)
-    assert scores["half of the record"] < 0.6 * scores["steady"], scores
+    for group in range(5):
+        assert np.allclose(whole_sums[group], revolutions[group::5].sum(axis=0))
 
 
 def test_score_false_alarm_rate_on_pure_noise() -> None:
