@@ -26,9 +26,6 @@ class VersionAction(argparse.Action):
         parser.exit(message=f"gearwatch {package_version()}\n")
 
 
-_COMMANDS_PACKAGE = "gearwatch.cli.commands"
-
-
 def command_modules() -> list[str]:
     """Every module in :mod:`gearwatch.cli.commands` is a sub-command (sorted by name).
 
@@ -36,7 +33,6 @@ def command_modules() -> list[str]:
     (a tenth of ``--help``'s imports)."""
     import gearwatch.cli.commands as package
 
-    assert package.__name__ == _COMMANDS_PACKAGE
     names = {
         entry.name.removesuffix(".py")
         for folder in package.__path__
@@ -57,8 +53,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action=VersionAction, nargs=0, help="show the version and exit")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     modules = command_modules()
-    module_name = f"{_COMMANDS_PACKAGE}.{command.replace('-', '_')}" if command else None
-    if module_name in modules:
+    wanted = command.replace("-", "_") if command else None
+    module_name = next((m for m in modules if m.rsplit(".", 1)[1] == wanted), None)
+    if module_name is not None:
         importlib.import_module(module_name).register(subparsers)
         if command in subparsers.choices:
             return parser

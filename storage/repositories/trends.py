@@ -20,7 +20,7 @@ from storage.models import (
     ToothIndicator,
 )
 from storage.repositories.base import Repository
-from storage.repositories.rigs import GearPair, ran_pair
+from storage.repositories.rigs import CampaignRepository, GearPair, ran_pair
 
 
 class TrendPoint(NamedTuple):
@@ -184,14 +184,7 @@ class TrendRepository(Repository[ToothIndicator]):
         channels a rig's trends cover. With ``campaign_id``, that campaign's channels alone,
         whichever pair it ran (an earlier pair's history stays within reach)."""
         if campaign_id is not None:
-            return {
-                int(channel_id): str(name)
-                for channel_id, name in self.session.execute(
-                    sa.select(Channel.id, Channel.name)
-                    .join(Campaign, Campaign.id == Channel.campaign_id)
-                    .where(Campaign.rig_id == rig_id, Campaign.id == campaign_id)
-                )
-            }
+            return {c.id: c.name for c in CampaignRepository(self.session).channels(campaign_id)}
         query = (
             sa.select(Channel.id, Channel.name, Campaign.manifest, Rig.pinion_teeth,
                       Rig.gear_teeth, Rig.tooth1_pitch_angle_deg)
