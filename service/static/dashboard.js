@@ -526,6 +526,12 @@ function renderAlarms() {
 }
 
 async function showAlarm(alarm, acknowledging) {
+  // an alarm raised on a record the views do not show (an earlier gear pair): show its campaign
+  // first, so that its tooth is that pinion's tooth
+  const onShownRecords = state.trend && state.trend.records.some((r) => r.record_id === alarm.record_id);
+  if (!onShownRecords && alarm.campaign_id && alarm.campaign_id !== state.campaign) {
+    await switchRig(state.rig, alarm.campaign_id);
+  }
   state.alarmDetail = alarm.id;
   const detail = await api(`/alarms/${alarm.id}`).catch((error) => { message(error.message); return null; });
   if (!detail) return;

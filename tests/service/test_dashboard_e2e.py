@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import sqlalchemy as sa
 
 from tests.conftest import service_unavailable
 from tests.service.conftest import SPALL_TOOTH, Replayed
@@ -45,6 +46,7 @@ SEEDED_SPALL_TOOTH = 7
 KURTOSIS_JUMP_DAY = 8
 TOOTHLESS_RECORDS = 6
 PAIRS = (("pair-20", 20, 3), ("pair-17", 17, 2))  # (campaign, pinion teeth, records), in order
+OLD_PAIR_ALARM_TOOTH = 18  # an open alarm on the earlier pair's pinion, beyond the current one's teeth
 
 
 def _free_port() -> int:
@@ -63,7 +65,13 @@ class Site:
 def _seed_other_rigs(factory: Any) -> None:
     from gearwatch.usecases.alarms import evaluate_record
     from storage.db import session_scope
-    from storage.repositories import AlarmRuleRepository, CampaignRepository, RecordRepository
+    from storage.models import ToothIndicator
+    from storage.repositories import (
+        AlarmRepository,
+        AlarmRuleRepository,
+        CampaignRepository,
+        RecordRepository,
+    )
     from tests.service.seed import seed_campaign
     from tests.storage.factories import analysis, campaign_config
 
@@ -112,6 +120,7 @@ def _seed_other_rigs(factory: Any) -> None:
         records.add_result(record, result_analysis)
         # a rig whose 20-tooth pinion was replaced by a 17-tooth one: two gear pairs
         day = 0
+        last_of_pair = {}
         for name, teeth, count in PAIRS:
             pair = CampaignRepository(session).ensure(
                 campaign_config(name, "rig-p", pinion_teeth=teeth, gear_teeth=43))
@@ -123,7 +132,17 @@ def _seed_other_rigs(factory: Any) -> None:
                 result_analysis = analysis(sha256=sha, teeth=teeth, curve_length=64 * teeth)
                 records.mark_accepted(record, result_analysis)
                 records.add_result(record, result_analysis)
+                last_of_pair[name] = record
                 day += 1
+        # an alarm still open on the earlier pinion's tooth 18, which the current one does not have
+        old_record = last_of_pair[PAIRS[0][0]]
+        depth_rule = next(rule for rule in AlarmRuleRepository(session).ensure_defaults(
+            old_record.rig_id) if rule.indicator == "mci_depth")
+        AlarmRepository(session).open(
+            rule=depth_rule, tooth=OLD_PAIR_ALARM_TOOTH, severity="alarm", record=old_record,
+            channel_id=session.scalar(sa.select(ToothIndicator.channel_id).where(
+                ToothIndicator.record_id == old_record.id).limit(1)),
+            value=0.9, score=7.5, baseline_centre=0.15, baseline_spread=0.1, evidence="level")
 
 
 @pytest.fixture(scope="module")
@@ -394,3 +413,18 @@ def test_an_earlier_gear_pair_is_shown_by_choosing_its_campaign(page: Any, site:
     # another rig forgets the choice
     _ready_after(page, lambda: page.click("#overview tbody tr[data-rig='rig-a']"))
     assert page.input_value("#campaign") == ""
+
+
+def test_an_alarm_of_an_earlier_gear_pair_opens_on_that_pair(page: Any, site: Site) -> None:
+    """Clicked while the current pair is shown, an alarm raised on an earlier pair's record
+    shows that campaign and its tooth (tooth 18 of the 20-tooth pinion, not of the 17-tooth)."""
+    old, old_teeth, _records = PAIRS[0]
+    _ready_after(page, lambda: page.click("#overview tbody tr[data-rig='rig-p']"))
+    assert page.input_value("#campaign") == ""
+    row = page.locator(f"#alarms tbody tr[data-tooth='{OLD_PAIR_ALARM_TOOTH}']")
+    _ready_after(page, row.click)
+    assert page.input_value("#campaign") == old
+    assert f"× {old_teeth} teeth" in page.inner_text("#heatmap-legend")
+    page.wait_for_selector(f"#trend[data-tooth='{OLD_PAIR_ALARM_TOOTH}']")
+    assert page.inner_text("#trend-title").startswith(f"tooth {OLD_PAIR_ALARM_TOOTH} — ")
+    assert page.inner_text("#trend-title").endswith(f"— campaign {old}")
