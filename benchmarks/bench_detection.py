@@ -26,8 +26,9 @@ study below). Generated records are cached under ``/tmp/gw-eval/`` as npz.
 
 Parts (never mixed; even seeds spalled, odd healthy): ``tune`` = seeds 0–59 and ``tune-2`` =
 60–159, used while choosing the rule settings; ``held-out`` = 10000–10199, ``held-out-2`` =
-20000–20199, ``held-out-3`` = 30000–30199, ``held-out-4`` = 40000–40199 and ``held-out-5`` =
-50000–50199, each run for a report once and then spent (see
+20000–20199, ``held-out-3`` = 30000–30199, ``held-out-4`` = 40000–40199, ``held-out-5`` =
+50000–50199, ``held-out-6`` = 60000–60199, ``held-out-7`` = 70000–70199 and ``held-out-8`` =
+80000–80199, each run for a report once and then spent (see
 below which version each one measured; the ``held-out`` and ``held-out-2`` reports used their
 first 100 seeds, ``--limit 100``). ``--quick`` takes the first 12 campaigns of the part.
 
@@ -490,6 +491,8 @@ CACHE = Path("/tmp/gw-eval")
 REVOLUTIONS = int(os.environ.get("GW_BENCH_REVOLUTIONS", "30"))
 """Pinion revolutions per record (``--revolutions``; an environment variable so that the worker
 processes see it): 30 is the evaluation set; more is the record-length study."""
+POOLED_SPREAD = True
+"""Score record-relative per-tooth rules with the pooled spread of the teeth (``--no-pooled-spread``)."""
 DAYS = 7
 PARTS = {
     "tune": range(0, 60),
@@ -501,6 +504,7 @@ PARTS = {
     "held-out-5": range(50000, 50200),
     "held-out-6": range(60000, 60200),
     "held-out-7": range(70000, 70200),
+    "held-out-8": range(80000, 80200),
 }
 """``held-out-2``: a second held-out range, first run after the change detector's revision that
 followed a look at ``held-out`` (so that one part stays unseen while the method was changed).
@@ -919,7 +923,13 @@ def _running_na4(result: dict[str, Any]) -> None:
 def evaluate(result: dict[str, Any], indicator: str, per_tooth: bool, settings: dict[str, Any]) -> list[tuple[int, int, str, float]]:
     """Alarm openings (day, tooth, evidence, score in baseline units) of one method on one
     campaign (tooth 0: whole record)."""
-    from detection.alarms import RuleSettings, TrackState, step
+    from detection.alarms import (
+        RECORD_RELATIVE_INDICATORS,
+        RuleSettings,
+        TrackState,
+        pooled_spread,
+        step,
+    )
     from detection.default_rules import DEFAULT_RULES
 
     if indicator == BOTH_PER_TOOTH:
@@ -954,7 +964,11 @@ def evaluate(result: dict[str, Any], indicator: str, per_tooth: bool, settings: 
         if "rejected" in day:
             continue
         values = day["teeth"][indicator] if per_tooth else [day["metrics"][indicator]]
-        evaluations = [step(state, float(value), rule) for state, value in zip(states, values, strict=True)]
+        pooled = None
+        if POOLED_SPREAD and indicator in RECORD_RELATIVE_INDICATORS:
+            pooled = pooled_spread(state.baseline_values for state in states)
+        evaluations = [step(state, float(value), rule, pooled)
+                       for state, value in zip(states, values, strict=True)]
         for index, evaluation in enumerate(evaluations):
             states[index] = evaluation.state
             for transition in evaluation.transitions:
@@ -1073,18 +1087,27 @@ def main() -> None:
     parser.add_argument("--generator", choices=["project", "independent", "both"], default="project")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--limit", type=int, default=None, help="first N campaigns of the part")
+    parser.add_argument("--skip", type=int, default=0,
+                        help="leave out the part's first N campaigns (spent by an earlier report)")
     parser.add_argument("--revolutions", type=int, default=None,
                         help="pinion revolutions per record (default 30: the evaluation set)")
     parser.add_argument("--generate-only", action="store_true",
                         help="only generate and cache the records (no analysis, no table)")
     parser.add_argument("--from-results", action="store_true",
                         help="re-evaluate the alarm rules on the saved per-record results")
+    parser.add_argument("--no-pooled-spread", action="store_true",
+                        help="score per-tooth rules without the teeth's pooled day-to-day spread "
+                             "(the rule before 2026-11-29, for comparison)")
     args = parser.parse_args()
+    if args.no_pooled_spread:
+        global POOLED_SPREAD
+        POOLED_SPREAD = False
     if args.revolutions is not None:
         global REVOLUTIONS
         REVOLUTIONS = args.revolutions
         os.environ["GW_BENCH_REVOLUTIONS"] = str(args.revolutions)  # for spawned workers too
     seeds = list(PARTS[args.part])
+    seeds = seeds[args.skip:]
     if args.quick:
         seeds = seeds[:12]
     if args.limit:

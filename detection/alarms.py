@@ -348,10 +348,56 @@ class Evaluation:
     score: float | None
     """The value in baseline units (``None`` while learning or for a non-finite value)."""
     transitions: tuple[Transition, ...] = ()
+    spread: float | None = None
+    """The spread the score was computed with: the track's own, or ``pooled_spread`` where that
+    is larger (``None`` when not scored)."""
 
 
-def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
+def pooled_spread(value_sets: Iterable[Sequence[float]], min_tracks: int = 3) -> float | None:
+    """How much one track's values move from record to record, pooled over tracks of the same
+    kind (the teeth of one channel): a robust standard deviation about each track's own mean.
+
+    Each track with ``n ≥ 2`` finite values gives its sample variance ``s²`` on ``n − 1`` degrees
+    of freedom, divided by the median of ``χ²(n − 1)/(n − 1)`` so that it is unbiased in the
+    median; the result is the square root of the median over tracks, so a few tracks that move
+    more (a tooth with a manufacturing well, a tooth already failing) do not set it. ``None``
+    with fewer than ``min_tracks`` such tracks.
+
+    >>> round(pooled_spread([[0.0, 2.0], [1.0, 3.0], [5.0, 7.0], [0.0, 20.0]]), 1)
+    2.1
+    >>> pooled_spread([[1.0], [2.0, 3.0]]) is None
+    True
+    """
+    normalised: list[float] = []
+    for values in value_sets:
+        array = np.asarray(values, dtype=float)
+        array = array[np.isfinite(array)]
+        if array.size < 2:
+            continue
+        dof = array.size - 1
+        normalised.append(float(np.var(array, ddof=1)) / _chi2_median_over_dof(dof))
+    if len(normalised) < min_tracks:
+        return None
+    return math.sqrt(float(np.median(normalised)))
+
+
+@functools.lru_cache(maxsize=256)
+def _chi2_median_over_dof(dof: int) -> float:
+    """The median of ``χ²(dof)/dof``: a sample variance's median in units of the true one."""
+    from scipy import stats  # here, not at the top: see learn_baseline
+
+    return float(stats.chi2.ppf(0.5, dof)) / dof
+
+
+def step(
+    state: TrackState, value: float, rule: RuleSettings, pooled_spread: float | None = None
+) -> Evaluation:
     """Feed one accepted record's value to a track.
+
+    ``pooled_spread`` (record-relative indicators, :func:`pooled_spread` of the other tracks of the
+    channel before this record) is a further floor of the spread the value is scored against: a
+    tooth's own few baseline records cannot see how much a healthy tooth's score moves from day
+    to day, its channel's teeth together can. The stored baseline is the track's own.
 
     >>> rule = RuleSettings("mci_depth", baseline_records=3, persistence=2)
     >>> state = TrackState()
@@ -371,7 +417,10 @@ def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
             return Evaluation(replace(state, baseline_values=collected), None)
         return Evaluation(replace(state, **_grown_baseline(state.baseline_values, value, rule)), None)
 
-    score = state.baseline.score(value)
+    baseline = state.baseline
+    if pooled_spread is not None and pooled_spread > baseline.spread:
+        baseline = replace(baseline, spread=pooled_spread)
+    score = baseline.score(value)
     cusum = state.cusum
     if rule.cusum_reference is not None:
         cusum = max(0.0, cusum + score - rule.cusum_reference)
@@ -418,7 +467,7 @@ def step(state: TrackState, value: float, rule: RuleSettings) -> Evaluation:
     ):
         # short campaigns: an early record that looks normal joins the baseline
         new_state = replace(new_state, **_grown_baseline(state.baseline_values, value, rule))
-    return Evaluation(new_state, score, tuple(transitions))
+    return Evaluation(new_state, score, tuple(transitions), baseline.spread)
 
 
 def _grown_baseline(

@@ -408,7 +408,10 @@ class AlarmOut(BaseModel):
     last_value: float
     last_score: float = Field(description="Last value in baseline units (positive = worse).")
     baseline_centre: float
-    baseline_spread: float
+    baseline_spread: float = Field(
+        description="The spread the raising score was computed with: the track's own baseline "
+        "spread, or for `score` the channel's teeth's pooled day-to-day spread when that is larger."
+    )
     evidence: str | None = Field(
         default=None, description="What raised the alarm: `level` or `cusum` (sequential test)."
     )

@@ -19,7 +19,15 @@ from dataclasses import dataclass, field
 import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
-from detection.alarms import RULE_SETTING_NAMES, RuleSettings, TrackState, acknowledge, step
+from detection.alarms import (
+    RECORD_RELATIVE_INDICATORS,
+    RULE_SETTING_NAMES,
+    RuleSettings,
+    TrackState,
+    acknowledge,
+    pooled_spread,
+    step,
+)
 from gearwatch.floor.results import HISTORY_TOOTH_INDICATORS
 from storage.models import (
     Alarm,
@@ -120,6 +128,10 @@ def evaluate_record(session: Session, record: Record, result: ResultVersion) -> 
             and track.last_taken_at is not None
             and record.taken_at <= track.last_taken_at
         }
+        if late and rule.indicator in RECORD_RELATIVE_INDICATORS:
+            # replay_tracks replays the whole channel (the pooled spread): none of it advances
+            late_channels = {channel_id for channel_id, _ in late}
+            late |= {(c, t) for c, t, _ in rule_values if c in late_channels}
         if late:
             logger.info(
                 "record %s (taken %s) is not newer than %s track(s) of rule %s (%s): replaying them",
@@ -158,11 +170,13 @@ def _advance(
         for a in alarms_repo.list(rig_id=rule.rig_id, open_only=True, limit=None)
         if a.rule_id == rule.id
     }
+    states = {key: TrackState.from_dict(track.state) for key, track in tracks.items()}
+    pooled = _pooled_spreads(rule, states)
     changes: list[AlarmChange] = []
     for channel_id, tooth, value in rule_values:
         track = tracks.get((channel_id, tooth))
-        state = TrackState.from_dict(track.state) if track is not None else TrackState()
-        evaluation = step(state, value, settings)
+        state = states.get((channel_id, tooth), TrackState())
+        evaluation = step(state, value, settings, pooled.get(channel_id))
         alarm = open_alarms.get((channel_id, tooth))
         for transition in evaluation.transitions:
             if transition.opened:
@@ -176,7 +190,7 @@ def _advance(
                     value=transition.value,
                     score=transition.score,
                     baseline_centre=evaluation.state.baseline.centre,
-                    baseline_spread=evaluation.state.baseline.spread,
+                    baseline_spread=evaluation.spread or evaluation.state.baseline.spread,
                     evidence=transition.evidence,
                 )
                 open_alarms[(channel_id, tooth)] = alarm
@@ -207,6 +221,19 @@ def _advance(
             rule.id, channel_id, tooth, evaluation.state.to_dict(), record.taken_at, track
         )
     return changes
+
+
+def _pooled_spreads(
+    rule: AlarmRule, states: dict[tuple[int, int], TrackState]
+) -> dict[int, float | None]:
+    """channel → the pooled day-to-day spread of its tracks' baselines, for a record-relative
+    rule (:func:`detection.alarms.pooled_spread`); empty for every other rule."""
+    if rule.indicator not in RECORD_RELATIVE_INDICATORS:
+        return {}
+    by_channel: dict[int, list[tuple[float, ...]]] = defaultdict(list)
+    for (channel_id, _tooth), state in states.items():
+        by_channel[channel_id].append(state.baseline_values)
+    return {channel_id: pooled_spread(sets) for channel_id, sets in by_channel.items()}
 
 
 def _change(
@@ -285,6 +312,42 @@ class _Episode:
     acknowledged: bool = False
 
 
+def _channel_keys(session: Session, rule: AlarmRule, channels: set[int]) -> set[tuple[int, int]]:
+    """Every (channel, tooth) of the given channels with a current value of the rule's
+    indicator on the rig."""
+    rows = session.execute(
+        sa.select(ToothIndicator.channel_id, ToothIndicator.tooth).distinct()
+        .where(ToothIndicator.rig_id == rule.rig_id, ToothIndicator.indicator == rule.indicator,
+               ToothIndicator.is_current.is_(True), ToothIndicator.channel_id.in_(channels))
+    )
+    return {(channel_id, tooth) for channel_id, tooth in rows}
+
+
+def _replayed_pooled_spreads(
+    rule: AlarmRule, settings: RuleSettings, histories: dict[tuple[int, int], list[_Point]]
+) -> dict[tuple[int, int], float | None]:
+    """(channel, record id) → the pooled spread each record of a record-relative rule is scored
+    with: the channel's tracks stepped together in record order, as :func:`_advance` saw them
+    (acknowledgements change no baseline, so they are left out). Empty for every other rule."""
+    if rule.indicator not in RECORD_RELATIVE_INDICATORS:
+        return {}
+    by_channel: dict[int, dict[int, list[_Point]]] = defaultdict(dict)
+    for (channel_id, tooth), history in histories.items():
+        by_channel[channel_id][tooth] = history
+    pooled: dict[tuple[int, int], float | None] = {}
+    for channel_id, teeth in by_channel.items():
+        timeline = sorted({(p.taken_at, p.sha256, p.record_id) for h in teeth.values() for p in h})
+        values = {(tooth, p.record_id): p.value for tooth, h in teeth.items() for p in h}
+        states = {tooth: TrackState() for tooth in teeth}
+        for _taken_at, _sha256, record_id in timeline:
+            spread = pooled_spread([s.baseline_values for s in states.values() if s.baseline_values])
+            pooled[(channel_id, record_id)] = spread
+            for tooth in teeth:
+                if (value := values.get((tooth, record_id))) is not None:
+                    states[tooth] = step(states[tooth], value, settings, spread).state
+    return pooled
+
+
 def _ack_position(alarm: Alarm) -> int | None:
     """The record of the last evaluation event before the alarm's acknowledgement."""
     last_record: int | None = None
@@ -308,7 +371,11 @@ def replay_tracks(
     are the transitions the stored history did not have yet, plus the withdrawn alarms."""
     rules_repo = AlarmRuleRepository(session)
     settings = rule_settings(rule)
+    if rule.indicator in RECORD_RELATIVE_INDICATORS:
+        # a tooth's scores depend on its channel's other teeth (the pooled spread): all replay
+        keys = keys | _channel_keys(session, rule, {channel_id for channel_id, _ in keys})
     histories = _track_histories(session, rule, keys)
+    pooled = _replayed_pooled_spreads(rule, settings, histories)
     old_alarms: dict[tuple[int, int], list[Alarm]] = defaultdict(list)
     for stored in session.scalars(
         sa.select(Alarm).where(Alarm.rule_id == rule.id).order_by(Alarm.id)
@@ -329,13 +396,13 @@ def replay_tracks(
         episodes: list[_Episode] = []
         episode: _Episode | None = None
         for point in histories[key]:
-            evaluation = step(state, point.value, settings)
+            evaluation = step(state, point.value, settings, pooled.get((channel_id, point.record_id)))
             state = evaluation.state
             for transition in evaluation.transitions:
                 if transition.opened:
                     assert state.baseline is not None
                     episode = _Episode(point, transition.kind, state.baseline.centre,
-                                       state.baseline.spread)
+                                       evaluation.spread or state.baseline.spread)
                     episodes.append(episode)
                 elif episode is None:
                     continue

@@ -18,6 +18,7 @@ from detection.alarms import (
     acknowledge,
     indicator_direction,
     learn_baseline,
+    pooled_spread,
     run,
     step,
 )
@@ -401,6 +402,68 @@ def test_a_quiet_tooth_becoming_typical_is_not_an_alarm_standing_out_is() -> Non
     assert run(quiet_then_typical, absolute)[0][-1] is not None
     standing_out = [-4.0, -5.0, -4.5, 6.0, 7.0, 8.0]
     assert run(standing_out, score_rule())[0][-1] is not None
+
+
+# -- pooled day-to-day spread (record-relative indicators) -----------------------------------
+
+
+def test_pooled_spread_estimates_the_within_track_sigma_without_bias() -> None:
+    # 20 teeth × 3 baseline records (the default rule's first scored record), each tooth its own
+    # mean, day-to-day SD 2.5: the median of 400 estimates lies within 5 % of 2.5
+    rng = np.random.default_rng(11)
+    estimates = [
+        pooled_spread(rng.normal(rng.normal(0, 5, (20, 1)), 2.5, (20, 3)).tolist())
+        for _ in range(400)
+    ]
+    assert np.median(estimates) == pytest.approx(2.5, rel=0.05)
+
+
+def test_pooled_spread_is_not_set_by_a_few_restless_teeth() -> None:
+    rng = np.random.default_rng(12)
+    values = rng.normal(0.0, 1.0, (20, 5))
+    values[:3] *= 10.0  # three teeth whose score moves ten times more (a well, a failing tooth)
+    assert pooled_spread(values.tolist()) == pytest.approx(1.0, abs=0.35)
+    assert pooled_spread(values[:2].tolist()) is None  # too few tracks to pool
+
+
+def test_a_pooled_spread_larger_than_the_tracks_own_scores_with_it_and_keeps_the_baseline() -> None:
+    state = TrackState()
+    for value in (0.0, 0.1, -0.1):
+        state = step(state, value, score_rule()).state
+    assert state.baseline is not None
+    own = step(state, 4.0, score_rule())
+    pooled = step(state, 4.0, score_rule(), pooled_spread=4.0)
+    assert own.spread == state.baseline.spread < 4.0
+    assert pooled.spread == 4.0 and pooled.score == pytest.approx(1.0)
+    # a value that scores as normal joins the baseline, which stays the track's own
+    assert pooled.state.baseline is not None and pooled.state.baseline.spread < 4.0
+    smaller = step(state, 4.0, score_rule(), pooled_spread=1e-3)
+    assert smaller.score == own.score  # a floor, never a narrowing
+
+
+def test_pooled_spread_keeps_long_record_scores_from_false_alarms() -> None:
+    # Long records: a healthy tooth's score moves by ~2.5 of its record's standard errors from day
+    # to day (benchmarks/bench_detection.py --revolutions 300 measured 2.2), which the rule's floor
+    # of 1 does not see. 40 teeth × 80 seven-day campaigns, each tooth its own mean: scored with
+    # the teeth's pooled spread, at most 0.5 alarms per 1,000 tooth-days; on its own baseline
+    # alone, many more (the measured reason for pooling).
+    rng = np.random.default_rng(13)
+    rule = score_rule()
+    campaigns, teeth = 80, 40
+    opened = {True: 0, False: 0}
+    for _campaign in range(campaigns):
+        days = rng.normal(rng.normal(0.0, 1.0, (teeth, 1)), 2.5, (teeth, 7))
+        for pooling in (True, False):
+            states = [TrackState() for _ in range(teeth)]
+            for day in range(7):
+                spread = pooled_spread(s.baseline_values for s in states) if pooling else None
+                for tooth in range(teeth):
+                    evaluation = step(states[tooth], float(days[tooth, day]), rule, spread)
+                    states[tooth] = evaluation.state
+                    opened[pooling] += sum(t.opened for t in evaluation.transitions)
+    tooth_days = campaigns * teeth * 4  # days 4–7 are scored
+    assert opened[True] / tooth_days * 1000 <= 0.5
+    assert opened[False] > 5 * max(opened[True], 1)
 
 
 def test_the_stored_rule_settings_are_every_setting_of_a_rule() -> None:

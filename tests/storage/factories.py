@@ -55,20 +55,24 @@ def analysis(
     sha256: str = "0" * 64,
     teeth: int = 20,
     mci_depth: float | dict[int, float] = 0.1,
+    score: dict[int, float] | None = None,
     kurtosis: float = 3.0,
     channels: tuple[str, ...] = ("acc",),
     parameters: dict[str, Any] | None = None,
     curve_length: int = 1280,
     baseline_stats: dict[str, float] | None = None,
 ) -> RecordAnalysis:
-    """A plausible analysis: ``mci_depth`` for every tooth (or per tooth from a dict)."""
+    """A plausible analysis: ``mci_depth`` for every tooth (or per tooth from a dict), and the
+    per-tooth ``score`` when given (NaN otherwise, as for a record too short to score)."""
     result_channels = []
     for index, name in enumerate(channels):
         tooth_results = []
         for tooth in range(1, teeth + 1):
             depth = mci_depth.get(tooth, 0.1) if isinstance(mci_depth, dict) else mci_depth
+            tooth_score = score.get(tooth, float("nan")) if score is not None else float("nan")
             tooth_results.append(
-                ToothResult(tooth, 9.0 + (tooth - 1) * 18.0, depth, 1.0 + 0.01 * tooth, 3.0)
+                ToothResult(tooth, 9.0 + (tooth - 1) * 18.0, depth, 1.0 + 0.01 * tooth, 3.0,
+                            score=tooth_score)
             )
         metrics = {m: float(i + 1) for i, m in enumerate(METRIC_NAMES)}
         metrics["kurtosis"] = kurtosis

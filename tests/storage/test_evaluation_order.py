@@ -104,3 +104,54 @@ def test_late_record_replay_keeps_the_alarm_id_and_its_acknowledgement(
     assert again.state == "acknowledged" and again.acknowledged_by == "olga"
     assert [(e.state, e.who) for e in alarms.history(tooth7.id)] == before
     assert all(c.alarm_id != tooth7.id for c in changes)
+
+
+def _scores(index: int, day: int) -> dict[int, float]:
+    """Long records: every healthy tooth's score moves by ~2.5 from day to day about its own
+    level, except tooth 7, steady at 0.1–0.3 until it stands out from day 10 on."""
+    rng = random.Random(1000 + index)
+    scores = {tooth: tooth % 3 + rng.gauss(0.0, 2.5) for tooth in range(1, 21)}
+    scores[7] = {10: 14.0, 11: 20.0, 12: 26.0}.get(day, 0.1 + 0.1 * (day % 3))
+    return scores
+
+
+def _ingest_scores(session: Session, tag: str, order: list[int]) -> int:
+    from detection.default_rules import DEFAULT_RULES
+
+    campaign = CampaignRepository(session).ensure(campaign_config(f"camp-{tag}", f"rig-{tag}"))
+    AlarmRuleRepository(session).create(campaign.rig_id, "score", **DEFAULT_RULES["score"])
+    session.commit()
+    records = RecordRepository(session)
+    for index in order:
+        day = DAYS[index]
+        sha256 = f"{index:04x}".ljust(63, "0") + tag
+        record = records.add(campaign, sha256=sha256, file_name=f"r{index}.wav",
+                             raw_location=f"/raw/{sha256}.wav",
+                             taken_at=T0 + dt.timedelta(days=day))
+        result_analysis = analysis(sha256=sha256, score=_scores(index, day))
+        records.mark_accepted(record, result_analysis)
+        evaluate_record(session, record, records.add_result(record, result_analysis))
+        session.commit()
+    return campaign.rig_id
+
+
+def test_the_score_rule_pools_its_teeth_and_replays_to_the_same_in_any_order(
+    db_session: Session,
+) -> None:
+    """The ``score`` rule scores each tooth against its channel's pooled day-to-day spread
+    (:func:`detection.alarms.pooled_spread`): a late record replays every tooth of the channel,
+    so arrival order still changes nothing; and a tooth steadier than its neighbours is scored
+    against their spread, not its own."""
+    sequential = _ingest_scores(db_session, "c", list(range(len(DAYS))))
+    shuffled_order = list(range(len(DAYS)))
+    random.Random(4).shuffle(shuffled_order)
+    shuffled = _ingest_scores(db_session, "d", shuffled_order)
+    expected = evaluation_snapshot(db_session, sequential)
+    assert evaluation_snapshot(db_session, shuffled) == expected
+    alarms = {a[1]: a for a in expected["alarms"]}
+    assert list(alarms) == [7], expected["alarms"]  # the restless healthy teeth raise nothing
+    own_spread = next(eval(track[2])["baseline"]["spread"] for track in expected["tracks"]
+                      if track[1] == 7)
+    spread_used = alarms[7][10]
+    assert own_spread == pytest.approx(1.0)  # the rule's floor: tooth 7 alone looks steady
+    assert 1.5 < spread_used < 4.0  # the teeth's day-to-day spread of 2.5, pooled
