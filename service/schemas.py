@@ -499,6 +499,39 @@ class AlarmRules(BaseModel):
     items: list[AlarmRuleOut]
 
 
+class TrackLevelsOut(BaseModel):
+    tooth: int | None = Field(description="Pinion tooth; null for a whole-record rule.", examples=[16])
+    centre: float = Field(description="The baseline centre learned so far (indicator's unit).")
+    spread: float = Field(description="The spread the next record is scored against: the "
+                          "track's own, or for `score` the channel's pooled day-to-day spread "
+                          "when that is larger.")
+    warning: float = Field(description="Value above which (below, for a lower-is-worse "
+                           "indicator) a record counts towards a warning.")
+    alarm: float
+    clear: float
+    cusum: float = Field(description="The sequential test's sum now (alarm when it passes the "
+                         "rule's `cusum_limit`).")
+    state: Literal["warning", "alarm", "acknowledged"] | None = Field(
+        description="The open alarm's state; null when none is open.")
+    baseline_records: int = Field(description="Records the baseline has learned from.")
+
+
+class AlarmLevelsOut(BaseModel):
+    """Where each track of one rule stands: the levels the next record of the campaign's
+    channel must pass. Tracks still learning their baseline are not listed."""
+
+    rig_id: str = Field(examples=["rig-a"])
+    indicator: str = Field(examples=["score"])
+    campaign: str = Field(examples=["fatigue-2026-03"])
+    channel: str = Field(examples=["acc1"])
+    rule: AlarmRuleOut
+    pooled_spread: float | None = Field(
+        description="For `score`: how much the channel's healthy teeth move from record to "
+        "record, pooled over the teeth (null for other rules, or before 3 teeth have 2 "
+        "baseline records).")
+    items: list[TrackLevelsOut]
+
+
 class AlarmRulesIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
     items: list[AlarmRuleIn] = Field(max_length=64)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import gzip
 import hashlib
 from dataclasses import dataclass
@@ -14,6 +15,7 @@ from starlette.concurrency import run_in_threadpool
 from gearwatch.floor.errors import InputError, NotFound
 from gearwatch.floor.results import STORED_TOOTH_INDICATORS
 from gearwatch.floor.settings import Settings
+from gearwatch.usecases.alarm_levels import rule_levels
 from service import schemas
 from service.convert import rig_by_name, rig_out, rule_out
 from service.deps import CurrentKey, DbSession, OperatorKey
@@ -221,6 +223,41 @@ def get_rules(rig_id: RigName, db: DbSession, _caller: CurrentKey) -> schemas.Al
     rig = rig_by_name(db, rig_id)
     rules = AlarmRuleRepository(db).list(rig.id)
     return schemas.AlarmRules(rig_id=rig.name, items=[rule_out(r) for r in rules])
+
+
+@router.get(
+    "/{rig_id}/alarm-levels",
+    response_model=schemas.AlarmLevelsOut,
+    summary="Where each tooth stands against one alarm rule: baseline, levels, CUSUM",
+    description="The levels the next record must pass, per tooth (or the whole record), as "
+    "the rule has learned them: for one campaign's channel (default: the campaign of the "
+    "rig's newest accepted record and its first accelerometer by name). 404 when the rig has "
+    "no such rule or no accepted record.",
+    responses=errors(401, 404, 422),
+)
+def get_levels(
+    rig_id: RigName,
+    db: DbSession,
+    _caller: CurrentKey,
+    indicator: Annotated[schemas.AlarmIndicatorName, Query(examples=["score"])],
+    campaign: Annotated[
+        str | None,
+        Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["pair-1"]),
+    ] = None,
+    channel: Annotated[
+        str | None,
+        Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["acc1"]),
+    ] = None,
+) -> schemas.AlarmLevelsOut:
+    rig = rig_by_name(db, rig_id)
+    found = rule_levels(db, rig, indicator, campaign, channel)
+    if found is None:
+        raise NotFound(f"rig {rig.name!r} has no rule for {indicator!r} or no accepted record")
+    return schemas.AlarmLevelsOut(
+        rig_id=rig.name, indicator=indicator, campaign=found.campaign, channel=found.channel,
+        rule=rule_out(found.rule), pooled_spread=found.pooled_spread,
+        items=[schemas.TrackLevelsOut(**dataclasses.asdict(track)) for track in found.tracks],
+    )
 
 
 @router.put(

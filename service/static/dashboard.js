@@ -17,7 +17,7 @@ const el = (id) => document.getElementById(id);
 const state = {
   key: null, me: null, rig: null, campaign: "", campaigns: [], indicator: null, indicators: [],
   overview: [],
-  trend: null, alarms: [], rules: [], records: [], record: null, compare: null, tooth: null,
+  trend: null, levels: null, alarms: [], rules: [], records: [], record: null, compare: null, tooth: null,
   curvePlot: null, trendPlot: null, alarmDetail: null, generation: 0,
 };
 
@@ -81,12 +81,6 @@ function colour(t) {
   const mix = (k) => Math.round(parseInt(a.substr(k, 2), 16) * (1 - f) + parseInt(b.substr(k, 2), 16) * f);
   return `rgb(${mix(1)},${mix(3)},${mix(5)})`;
 }
-function quantile(sorted, q) {
-  if (!sorted.length) return NaN;
-  const i = (sorted.length - 1) * q, lo = Math.floor(i), hi = Math.ceil(i);
-  return sorted[lo] + (sorted[hi] - sorted[lo]) * (i - lo);
-}
-function median(values) { return quantile(values.filter(Number.isFinite).sort((a, b) => a - b), 0.5); }
 
 /* ---------- resetting (rig, indicator or record switches) ---------- */
 function resetCurve() {
@@ -97,7 +91,7 @@ function resetCurve() {
 function resetTrend() {
   if (state.trendPlot) { state.trendPlot.destroy(); state.trendPlot = null; }
   el("trend").innerHTML = ""; el("trend-title").textContent = "—"; el("trend-legend").textContent = "";
-  delete el("trend").dataset.levels; delete el("trend").dataset.tooth;
+  delete el("trend").dataset.levels; delete el("trend").dataset.tooth; delete el("trend").dataset.warning;
 }
 function resetHeatmap(text) {
   const canvas = el("heatmap");
@@ -109,7 +103,7 @@ function resetHeatmap(text) {
 }
 function resetAll() {
   state.generation += 1;
-  state.trend = null; state.record = null; state.compare = null; state.tooth = null;
+  state.trend = null; state.levels = null; state.record = null; state.compare = null; state.tooth = null;
   state.alarms = []; state.records = []; state.alarmDetail = null;
   resetHeatmap("loading…"); resetCurve(); resetTrend();
   el("record").innerHTML = ""; el("compare").innerHTML = '<option value="">—</option>';
@@ -427,18 +421,11 @@ async function selectRecord(recordId, compareId) {
 }
 
 /* ---------- one tooth's (or the whole record's) trend, with baseline and alarm levels ---------- */
-function toothBaseline(tooth, column) {
-  // The stored alarm's baseline when there is one; else the rule's recipe on the first records.
-  const rule = (state.rules || []).find((r) => r.indicator === state.indicator);
-  const alarm = state.alarms.find((a) => a.indicator === state.indicator && a.tooth === tooth);
-  if (alarm) return { centre: alarm.baseline_centre, spread: alarm.baseline_spread, rule };
-  if (!rule) return null;
-  const first = column.slice(0, rule.baseline_records).filter(Number.isFinite);
-  if (first.length < rule.baseline_records) return null;
-  const centre = median(first);
-  const mad = median(first.map((v) => Math.abs(v - centre)));
-  const spread = Math.max(1.4826 * mad, rule.spread_floor_fraction * Math.abs(centre), rule.spread_floor_abs);
-  return { centre, spread, rule };
+function toothBaseline(tooth) {
+  // The rule's own baseline and levels for this tooth, as it has learned them (alarm-levels);
+  // none while the tooth's baseline is still being learned.
+  const levels = state.levels && state.levels.items.find((t) => t.tooth === tooth);
+  return levels ? { centre: levels.centre, warning: levels.warning, alarm: levels.alarm } : null;
 }
 
 function drawTrend(column, tooth) {
@@ -452,26 +439,27 @@ function drawTrend(column, tooth) {
   const ys = trend.values.map((row) => row[column]);
   const series = [{ label: "taken at (UTC)" }, { label: what, stroke: "#b00020", width: 1.5, points: { show: true, size: 5 } }];
   const columns = [xs, ys];
-  const base = toothBaseline(tooth, ys);
+  const base = toothBaseline(tooth);
   if (base) {
     const flat = (v) => xs.map(() => v);
     series.push({ label: "baseline", stroke: "#607080", dash: [4, 4], points: { show: false } });
     columns.push(flat(base.centre));
-    if (base.rule) {
-      series.push({ label: "warning", stroke: "#e69500", dash: [6, 3], points: { show: false } });
-      columns.push(flat(base.centre + base.rule.warning_level * base.spread));
-      series.push({ label: "alarm", stroke: "#b00020", dash: [2, 2], points: { show: false } });
-      columns.push(flat(base.centre + base.rule.alarm_level * base.spread));
-    }
+    series.push({ label: "warning", stroke: "#e69500", dash: [6, 3], points: { show: false } });
+    columns.push(flat(base.warning));
+    series.push({ label: "alarm", stroke: "#b00020", dash: [2, 2], points: { show: false } });
+    columns.push(flat(base.alarm));
   }
   const opts = {
     width: Math.min(900, el("trend").clientWidth || 700), height: 260, series,
     axes: [{}, { label: `${meta.title}${unit ? " (" + unit + ")" : ""}`, size: 70 }],
   };
   state.trendPlot = new uPlot(opts, columns, el("trend"));
-  el("trend").dataset.levels = base && base.rule ? "true" : "false";
+  el("trend").dataset.levels = base ? "true" : "false";
+  el("trend").dataset.warning = base ? String(base.warning) : "";
   el("trend").dataset.tooth = tooth === null ? "whole" : String(tooth);
-  el("trend-legend").textContent = base ? "Dashed: the baseline (median of the first records) and the warning and alarm levels of the rule." : "No baseline yet.";
+  el("trend-legend").textContent = base
+    ? "Dashed: the baseline the rule has learned for this tooth and the warning and alarm levels the next record must pass (a growing change alarms earlier, through the rule's CUSUM)."
+    : "No baseline yet (the rule is still learning this tooth's usual level), or no enabled rule on this indicator.";
 }
 
 function selectTooth(tooth) {
@@ -597,6 +585,16 @@ async function download(path, name) {
 /* ---------- loading a rig, an indicator ---------- */
 async function loadTrend() {
   state.trend = await api(trendQuery(state.indicator));
+  state.levels = await loadLevels(state.indicator);
+}
+
+/* Where each tooth stands against the indicator's enabled rule (null without one). */
+async function loadLevels(indicator) {
+  if (!(state.rules || []).some((r) => r.indicator === indicator && r.enabled)) return null;
+  const campaign = state.campaign ? `&campaign=${encodeURIComponent(state.campaign)}` : "";
+  const channel = state.trend.channel ? `&channel=${encodeURIComponent(state.trend.channel)}` : "";
+  return api(`${rigPath()}/alarm-levels?indicator=${encodeURIComponent(indicator)}${campaign}${channel}`)
+    .catch(() => null);  // no accepted record yet: no levels to draw
 }
 
 /* The rig's campaigns, newest first, each with its pinion and gear teeth when its manifest has them. */

@@ -220,6 +220,34 @@ def test_acknowledge_records_who_when_comment_history_and_audit(api: Api, seeded
     error_of(api.client.post("/api/v1/alarms/999999/ack", headers=api.headers("operator")), 404)
 
 
+def test_alarm_levels_say_where_each_tooth_stands(api: Api, seeded: Seeded) -> None:
+    """The levels a trend draws are the rule's own: the spalled tooth's baseline is the one its
+    alarm was raised against, and every level is centre + level × spread."""
+    body = api.get("/api/v1/rigs/rig-a/alarm-levels?indicator=mci_depth").json()
+    assert body["campaign"] == "camp-a" and body["rule"]["indicator"] == "mci_depth"
+    assert body["pooled_spread"] is None  # not a record-relative rule
+    items = {item["tooth"]: item for item in body["items"]}
+    assert sorted(items) == list(range(1, 21))
+    rule = body["rule"]
+    for item in items.values():
+        assert item["warning"] == pytest.approx(item["centre"] + rule["warning_level"] * item["spread"])
+        assert item["alarm"] == pytest.approx(item["centre"] + rule["alarm_level"] * item["spread"])
+        assert item["baseline_records"] == rule["baseline_records"]
+    alarm = next(a for a in api.get("/api/v1/alarms?rig_id=rig-a").json()["items"]
+                 if a["indicator"] == "mci_depth" and a["tooth"] == seeded.spall_tooth)
+    spalled = items[seeded.spall_tooth]
+    assert spalled["state"] == alarm["state"] == "alarm"
+    assert spalled["centre"] == pytest.approx(alarm["baseline_centre"])
+    assert spalled["spread"] == pytest.approx(alarm["baseline_spread"])
+    assert all(item["state"] is None for tooth, item in items.items() if tooth != seeded.spall_tooth)
+    same = api.get("/api/v1/rigs/rig-a/alarm-levels?indicator=mci_depth&campaign=camp-a").json()
+    assert same == body
+    error_of(api.get("/api/v1/rigs/rig-a/alarm-levels?indicator=mci_depth&campaign=nope"), 404)
+    error_of(api.get("/api/v1/rigs/rig-a/alarm-levels?indicator=mci_depth&channel=nope"), 404)
+    error_of(api.get("/api/v1/rigs/rig-a/alarm-levels?indicator=bogus"), 422)
+    error_of(api.get("/api/v1/rigs/rig-a/alarm-levels?indicator=mci_depth", None), 401)
+
+
 def test_operators_change_alarm_rules(api: Api, seeded: Seeded) -> None:
     rules = api.get("/api/v1/rigs/rig-a/alarm-rules").json()["items"]
     assert {r["indicator"] for r in rules} >= {"mci_depth"}

@@ -256,6 +256,10 @@ def test_opening_shows_every_rig_and_the_spalled_tooth_with_units_and_dates(
     assert float(page.get_attribute("#heatmap", "data-min")) == pytest.approx(min(values))
     assert page.inner_text("#trend-title") == f"tooth {SPALL_TOOTH} — per-tooth score (baseline units)"
     assert page.get_attribute("#trend", "data-levels") == "true"
+    # the levels drawn are the rule's own (its learned baseline and, for the score, the pooled spread)
+    levels = _api(page, site, f"/api/v1/rigs/{site.sim_rig}/alarm-levels?indicator=score")
+    warning = next(t["warning"] for t in levels["items"] if t["tooth"] == SPALL_TOOTH)
+    assert float(page.get_attribute("#trend", "data-warning") or "nan") == pytest.approx(warning)
     assert page.get_attribute("#curve", "data-sectors") == "20"
     assert page.inner_text("#curve-title").startswith("day 12 — ")
 
