@@ -48,6 +48,25 @@ operator of a new rig gets, per tooth and whole record together. "Earlier than e
 metric" compares with FM4, the residual's kurtosis, kurtosis and raw kurtosis (difference energy
 alarms in nearly every healthy campaign: its first alarms are not detections).
 
+Measured 2026-11-28 (a later session), the ``score`` rule with the teeth's pooled day-to-day
+spread (:func:`detection.alarms.pooled_spread`; ``--no-pooled-spread`` scores the same saved
+results without it). Long records (``--revolutions 300``), ``held-out-8`` (seeds 80000–80039,
+generated fresh; independent 80000–80019), healthy campaigns with an alarm of the per-tooth
+rules, and their detections by the day after onset, without → with::
+
+    project, 20 spalled + 20 healthy          healthy w/ FA   by onset + 1
+    per-tooth score                             4/20 → 0/20    100 → 95 %
+    both per-tooth rules                        4/20 → 0/20    100 → 100 %
+    every enabled default rule                  4/20 → 0/20    100 → 100 %
+    independent, 10 + 10
+    per-tooth score                             0/10 → 0/10     20 → 10 %
+    both per-tooth rules                        1/10 → 1/10     70 → 70 %
+
+At 30 revolutions (``held-out-7``, seeds 70100–70199, 50 + 50 per generator) nothing an operator
+sees moved: both per-tooth rules 2/50 and 1/50 healthy alarmed both ways (the ``change``
+rule's), 100 % and 32 % by the day after onset both ways. The development parts and the study:
+:data:`detection.default_rules.DEFAULT_RULES`' note "Long records".
+
 Measured 2026-11-28 (third session), ``held-out-6`` (seeds 60000–60199, generated fresh), what
 an operator gets. Two changes: a lone ADC spike (one sample ~13 σ from its neighbours, which stay
 close together) is now a glitch, bridged before the raw metrics (:func:`dsp.robust.find_spikes`;
@@ -1097,7 +1116,7 @@ def main() -> None:
                         help="re-evaluate the alarm rules on the saved per-record results")
     parser.add_argument("--no-pooled-spread", action="store_true",
                         help="score per-tooth rules without the teeth's pooled day-to-day spread "
-                             "(the rule before 2026-11-29, for comparison)")
+                             "(the rule as it was before the pooled spread, for comparison)")
     args = parser.parse_args()
     if args.no_pooled_spread:
         global POOLED_SPREAD
