@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import datetime as dt
 import random
+from collections.abc import Callable
 
 import pytest
 from sqlalchemy.orm import Session
 
+from gearwatch.floor.results import RecordAnalysis
 from gearwatch.usecases.alarms import evaluate_record
+from storage.models import Campaign
 from storage.repositories import (
     AlarmRepository,
     AlarmRuleRepository,
@@ -45,6 +48,17 @@ def _ingest(session: Session, tag: str, order: list[int]) -> int:
                  warning_level=4.0, alarm_level=8.0, clear_level=2.0)
     rules.create(campaign.rig_id, "kurtosis", baseline_records=4, persistence=1)
     session.commit()
+    _add_and_evaluate(session, campaign, tag, order, lambda sha256, index, day: analysis(
+        sha256=sha256, mci_depth=_depth(index, day), kurtosis=_kurtosis(day)))
+    return campaign.rig_id
+
+
+def _add_and_evaluate(
+    session: Session, campaign: Campaign, tag: str, order: list[int],
+    analysed: Callable[[str, int, int], RecordAnalysis],
+) -> None:
+    """Add and evaluate the records in ``order``; ``analysed(sha256, index, day)`` is each one's
+    analysis."""
     records = RecordRepository(session)
     for index in order:
         day = DAYS[index]
@@ -53,12 +67,10 @@ def _ingest(session: Session, tag: str, order: list[int]) -> int:
         record = records.add(campaign, sha256=sha256, file_name=f"r{index}.wav",
                              raw_location=f"/raw/{sha256}.wav",
                              taken_at=T0 + dt.timedelta(days=day))
-        result_analysis = analysis(sha256=sha256, mci_depth=_depth(index, day),
-                                   kurtosis=_kurtosis(day))
+        result_analysis = analysed(sha256, index, day)
         records.mark_accepted(record, result_analysis)
         evaluate_record(session, record, records.add_result(record, result_analysis))
         session.commit()
-    return campaign.rig_id
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -121,17 +133,8 @@ def _ingest_scores(session: Session, tag: str, order: list[int]) -> int:
     campaign = CampaignRepository(session).ensure(campaign_config(f"camp-{tag}", f"rig-{tag}"))
     AlarmRuleRepository(session).create(campaign.rig_id, "score", **DEFAULT_RULES["score"])
     session.commit()
-    records = RecordRepository(session)
-    for index in order:
-        day = DAYS[index]
-        sha256 = f"{index:04x}".ljust(63, "0") + tag
-        record = records.add(campaign, sha256=sha256, file_name=f"r{index}.wav",
-                             raw_location=f"/raw/{sha256}.wav",
-                             taken_at=T0 + dt.timedelta(days=day))
-        result_analysis = analysis(sha256=sha256, score=_scores(index, day))
-        records.mark_accepted(record, result_analysis)
-        evaluate_record(session, record, records.add_result(record, result_analysis))
-        session.commit()
+    _add_and_evaluate(session, campaign, tag, order, lambda sha256, index, day: analysis(
+        sha256=sha256, score=_scores(index, day)))
     return campaign.rig_id
 
 
