@@ -52,6 +52,10 @@ side of the baseline centre, see :class:`Baseline`):
   tooth with the other teeth of the same record, 0 being the typical tooth: their baseline
   centre is never taken below 0. A tooth that stood below the others and became as loud as
   them (a load change) has not become worse than a typical tooth.
+  Their spread is never taken below the channel's teeth's pooled day-to-day spread
+  (:func:`pooled_spread`, passed to :func:`step` by the caller, which sees every tooth): on long
+  records a healthy tooth's score moves by several of the record's standard errors from day to
+  day, which the tooth's own few baseline records rarely show.
 """
 
 from __future__ import annotations
@@ -349,8 +353,8 @@ class Evaluation:
     """The value in baseline units (``None`` while learning or for a non-finite value)."""
     transitions: tuple[Transition, ...] = ()
     spread: float | None = None
-    """The spread the score was computed with: the track's own, or ``pooled_spread`` where that
-    is larger (``None`` when not scored)."""
+    """The spread the score was computed with: the track's own, or the ``pooled_floor`` where
+    that is larger (``None`` when not scored)."""
 
 
 def pooled_spread(value_sets: Iterable[Sequence[float]], min_tracks: int = 3) -> float | None:
@@ -390,12 +394,12 @@ def _chi2_median_over_dof(dof: int) -> float:
 
 
 def step(
-    state: TrackState, value: float, rule: RuleSettings, pooled_spread: float | None = None
+    state: TrackState, value: float, rule: RuleSettings, pooled_floor: float | None = None
 ) -> Evaluation:
     """Feed one accepted record's value to a track.
 
-    ``pooled_spread`` (record-relative indicators, :func:`pooled_spread` of the other tracks of the
-    channel before this record) is a further floor of the spread the value is scored against: a
+    ``pooled_floor`` (record-relative indicators: :func:`pooled_spread` of the channel's tracks
+    before this record) is a further floor of the spread the value is scored against: a
     tooth's own few baseline records cannot see how much a healthy tooth's score moves from day
     to day, its channel's teeth together can. The stored baseline is the track's own.
 
@@ -418,8 +422,8 @@ def step(
         return Evaluation(replace(state, **_grown_baseline(state.baseline_values, value, rule)), None)
 
     baseline = state.baseline
-    if pooled_spread is not None and pooled_spread > baseline.spread:
-        baseline = replace(baseline, spread=pooled_spread)
+    if pooled_floor is not None and pooled_floor > baseline.spread:
+        baseline = replace(baseline, spread=pooled_floor)
     score = baseline.score(value)
     cusum = state.cusum
     if rule.cusum_reference is not None:

@@ -432,12 +432,12 @@ def test_a_pooled_spread_larger_than_the_tracks_own_scores_with_it_and_keeps_the
         state = step(state, value, score_rule()).state
     assert state.baseline is not None
     own = step(state, 4.0, score_rule())
-    pooled = step(state, 4.0, score_rule(), pooled_spread=4.0)
+    pooled = step(state, 4.0, score_rule(), pooled_floor=4.0)
     assert own.spread == state.baseline.spread < 4.0
     assert pooled.spread == 4.0 and pooled.score == pytest.approx(1.0)
     # a value that scores as normal joins the baseline, which stays the track's own
     assert pooled.state.baseline is not None and pooled.state.baseline.spread < 4.0
-    smaller = step(state, 4.0, score_rule(), pooled_spread=1e-3)
+    smaller = step(state, 4.0, score_rule(), pooled_floor=1e-3)
     assert smaller.score == own.score  # a floor, never a narrowing
 
 
