@@ -457,8 +457,11 @@ function drawTrend(column, tooth) {
   el("trend").dataset.levels = base ? "true" : "false";
   el("trend").dataset.warning = base ? String(base.warning) : "";
   el("trend").dataset.tooth = tooth === null ? "whole" : String(tooth);
+  const pooled = base && state.levels.pooled_spread !== null
+    ? ` The spread is never below how much this channel's teeth move from record to record (${withUnit(state.levels.pooled_spread, unit)}, pooled over the teeth).`
+    : "";
   el("trend-legend").textContent = base
-    ? "Dashed: the baseline the rule has learned for this tooth and the warning and alarm levels the next record must pass (a growing change alarms earlier, through the rule's CUSUM)."
+    ? "Dashed: the baseline the rule has learned for this tooth and the warning and alarm levels the next record must pass (a growing change alarms earlier, through the rule's CUSUM)." + pooled
     : "No baseline yet (the rule is still learning this tooth's usual level), or no enabled rule on this indicator.";
 }
 

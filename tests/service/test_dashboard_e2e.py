@@ -260,6 +260,8 @@ def test_opening_shows_every_rig_and_the_spalled_tooth_with_units_and_dates(
     levels = _api(page, site, f"/api/v1/rigs/{site.sim_rig}/alarm-levels?indicator=score")
     warning = next(t["warning"] for t in levels["items"] if t["tooth"] == SPALL_TOOTH)
     assert float(page.get_attribute("#trend", "data-warning") or "nan") == pytest.approx(warning)
+    assert levels["pooled_spread"] is not None  # and the legend says what the spread is floored at
+    assert "pooled over the teeth" in page.inner_text("#trend-legend")
     assert page.get_attribute("#curve", "data-sectors") == "20"
     assert page.inner_text("#curve-title").startswith("day 12 — ")
 
