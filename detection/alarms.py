@@ -230,6 +230,21 @@ class Baseline:
         signed = value - self.centre if self.direction == "higher_is_worse" else self.centre - value
         return signed / self.spread
 
+    def value_at(self, score: float) -> float:
+        """The value that lies ``score`` baseline units on the worse side (:meth:`score`'s inverse).
+
+        >>> Baseline(1.0, 0.5, 5).value_at(4.0), Baseline(1.0, 0.5, 5, "lower_is_worse").value_at(4.0)
+        (3.0, -1.0)
+        """
+        sign = 1.0 if self.direction == "higher_is_worse" else -1.0
+        return self.centre + sign * score * self.spread
+
+    def floored(self, spread_floor: float | None) -> Baseline:
+        """The baseline scored with a spread never below ``spread_floor`` (``None``: itself)."""
+        if spread_floor is None or spread_floor <= self.spread:
+            return self
+        return replace(self, spread=spread_floor)
+
 
 @functools.lru_cache(maxsize=256)
 def small_sample_factor(count: int) -> float:
@@ -421,9 +436,7 @@ def step(
             return Evaluation(replace(state, baseline_values=collected), None)
         return Evaluation(replace(state, **_grown_baseline(state.baseline_values, value, rule)), None)
 
-    baseline = state.baseline
-    if pooled_floor is not None and pooled_floor > baseline.spread:
-        baseline = replace(baseline, spread=pooled_floor)
+    baseline = state.baseline.floored(pooled_floor)
     score = baseline.score(value)
     cusum = state.cusum
     if rule.cusum_reference is not None:

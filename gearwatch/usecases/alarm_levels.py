@@ -60,13 +60,11 @@ def _campaign(session: Session, rig: Rig, campaign: str | None) -> Campaign | No
 
 def _channel(session: Session, campaign: Campaign, channel: str | None) -> Channel:
     """The named channel of the campaign, or its first accelerometer by name (as the trend)."""
-    channels = CampaignRepository(session).channels(campaign.id)
+    campaigns = CampaignRepository(session)
     if channel is not None:
-        for found in channels:
-            if found.name == channel:
-                return found
-        raise NotFound(f"campaign {campaign.name!r} has no channel {channel!r}")
-    accelerometers = sorted((c for c in channels if c.kind == "accelerometer"), key=lambda c: c.name)
+        return campaigns.channel(campaign.id, channel)
+    accelerometers = sorted((c for c in campaigns.channels(campaign.id) if c.kind == "accelerometer"),
+                            key=lambda c: c.name)
     if not accelerometers:
         raise NotFound(f"campaign {campaign.name!r} has no accelerometer channel")
     return accelerometers[0]
@@ -80,30 +78,28 @@ def rule_levels(
     (default: the campaign of the newest accepted record, its first accelerometer); ``None``
     when the rig has no such rule or no accepted record. Tracks still learning their baseline
     are left out."""
-    rule = AlarmRuleRepository(session).get_for(rig.id, indicator)
+    rules = AlarmRuleRepository(session)
+    rule = rules.get_for(rig.id, indicator)
     chosen = _campaign(session, rig, campaign)
     if rule is None or chosen is None:
         return None
     found = _channel(session, chosen, channel)
     settings = rule_settings(rule)
     states = {track.tooth: TrackState.from_dict(track.state)
-              for track in AlarmRuleRepository(session).tracks(rule.id)
-              if track.channel_id == found.id}
+              for track in rules.tracks(rule.id) if track.channel_id == found.id}
     pooled = None
     if indicator in RECORD_RELATIVE_INDICATORS:
         pooled = pooled_spread(state.baseline_values for state in states.values())
-    sign = 1.0 if settings.direction == "higher_is_worse" else -1.0
     levels = []
     for tooth, state in sorted(states.items()):
         if state.baseline is None:
             continue
-        centre = state.baseline.centre
-        spread = max(state.baseline.spread, pooled or 0.0)
+        baseline = state.baseline.floored(pooled)  # what step() scores the next record against
         levels.append(TrackLevels(
-            tooth=tooth or None, centre=centre, spread=spread,
-            warning=centre + sign * settings.warning_level * spread,
-            alarm=centre + sign * settings.alarm_level * spread,
-            clear=centre + sign * settings.clear_level * spread,
+            tooth=tooth or None, centre=baseline.centre, spread=baseline.spread,
+            warning=baseline.value_at(settings.warning_level),
+            alarm=baseline.value_at(settings.alarm_level),
+            clear=baseline.value_at(settings.clear_level),
             cusum=state.cusum, state=state.alarm_state,
             baseline_records=len(state.baseline_values),
         ))

@@ -180,7 +180,7 @@ def _advance(
         alarm = open_alarms.get((channel_id, tooth))
         for transition in evaluation.transitions:
             if transition.opened:
-                assert evaluation.state.baseline is not None
+                assert evaluation.state.baseline is not None and evaluation.spread is not None
                 alarm = alarms_repo.open(
                     rule=rule,
                     channel_id=channel_id,
@@ -190,7 +190,7 @@ def _advance(
                     value=transition.value,
                     score=transition.score,
                     baseline_centre=evaluation.state.baseline.centre,
-                    baseline_spread=evaluation.spread or evaluation.state.baseline.spread,
+                    baseline_spread=evaluation.spread,
                     evidence=transition.evidence,
                 )
                 open_alarms[(channel_id, tooth)] = alarm
@@ -400,9 +400,9 @@ def replay_tracks(
             state = evaluation.state
             for transition in evaluation.transitions:
                 if transition.opened:
-                    assert state.baseline is not None
+                    assert state.baseline is not None and evaluation.spread is not None
                     episode = _Episode(point, transition.kind, state.baseline.centre,
-                                       evaluation.spread or state.baseline.spread)
+                                       evaluation.spread)
                     episodes.append(episode)
                 elif episode is None:
                     continue
