@@ -37,6 +37,17 @@ RigFilter = Annotated[
     str | None,
     Query(min_length=1, max_length=200, pattern=NAME_PATTERN, description="Only this rig."),
 ]
+CampaignFilter = Annotated[
+    str | None,
+    Query(min_length=1, max_length=200, pattern=NAME_PATTERN,
+          description="Only this campaign (its manifest id, e.g. an earlier gear pair's).",
+          examples=["pair-1"]),
+]
+ChannelFilter = Annotated[
+    str | None,
+    Query(min_length=1, max_length=200, pattern=NAME_PATTERN, description="One channel by name.",
+          examples=["acc1"]),
+]
 
 
 def errors(*statuses: int) -> dict[int | str, dict[str, Any]]:

@@ -37,7 +37,16 @@ from service.convert import (
 )
 from service.deps import Caller, CurrentKey, DbSession, OperatorKey, SettingsDep
 from service.queries import mci_baseline_band, relative_to_median, tooth_sectors
-from service.routers.common import CampaignName, Limit, Offset, RecordId, RigFilter, errors
+from service.routers.common import (
+    CampaignFilter,
+    CampaignName,
+    ChannelFilter,
+    Limit,
+    Offset,
+    RecordId,
+    RigFilter,
+    errors,
+)
 from service.upload import (
     UPLOAD_REQUEST_BODY,
     ReceivedUpload,
@@ -80,9 +89,7 @@ def list_records(
     db: DbSession,
     _caller: CurrentKey,
     rig_id: RigFilter = None,
-    campaign_id: Annotated[
-        str | None, Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN)
-    ] = None,
+    campaign_id: CampaignFilter = None,
     status: schemas.RecordStatus | None = None,
     since: Annotated[
         schemas.UtcDatetime | None, Query(description="taken_at ≥ since (with time zone)")
@@ -335,9 +342,7 @@ def curves(
     names: Annotated[
         list[schemas.CurveName] | None, Query(description="Curves to return (default all).")
     ] = None,
-    channel: Annotated[
-        str | None, Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN)
-    ] = None,
+    channel: ChannelFilter = None,
     result_id: Annotated[
         int | None, Query(ge=1, le=2**31 - 1, description="A result version (default current).")
     ] = None,

@@ -21,7 +21,7 @@ from service.convert import rig_by_name, rig_out, rule_out
 from service.deps import CurrentKey, DbSession, OperatorKey
 from service.exports import CSV_MEDIA_TYPE, check_indicator, trend_answer, trend_csv_from_json
 from service.queries import ResponseCache, trend_version
-from service.routers.common import RigName, errors
+from service.routers.common import CampaignFilter, ChannelFilter, RigName, errors
 from storage.models import Rig
 from storage.operator_queries import OperatorQueries
 from storage.repositories import (
@@ -85,16 +85,8 @@ async def trends(
     tooth: Annotated[
         int | None, Query(ge=1, le=10_000, description="One pinion tooth (1-based).")
     ] = None,
-    channel: Annotated[
-        str | None,
-        Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["acc1"]),
-    ] = None,
-    campaign: Annotated[
-        str | None,
-        Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN,
-              description="One campaign of the rig (e.g. an earlier gear pair's).",
-              examples=["pair-1"]),
-    ] = None,
+    channel: ChannelFilter = None,
+    campaign: CampaignFilter = None,
     format: Annotated[
         Literal["json", "csv"],
         Query(description="`csv`: one row per record (id, time, label), one column per tooth."),
@@ -240,14 +232,8 @@ def get_levels(
     db: DbSession,
     _caller: CurrentKey,
     indicator: Annotated[schemas.AlarmIndicatorName, Query(examples=["score"])],
-    campaign: Annotated[
-        str | None,
-        Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["pair-1"]),
-    ] = None,
-    channel: Annotated[
-        str | None,
-        Query(min_length=1, max_length=200, pattern=schemas.NAME_PATTERN, examples=["acc1"]),
-    ] = None,
+    campaign: CampaignFilter = None,
+    channel: ChannelFilter = None,
 ) -> schemas.AlarmLevelsOut:
     rig = rig_by_name(db, rig_id)
     found = rule_levels(db, rig, indicator, campaign, channel)
