@@ -24,6 +24,7 @@ from gearwatch.usecases.analyze import (
     clipped_fraction,
     gear_revolutions_from_pinion_grid,
 )
+from gearwatch.usecases.signal_checks import RAW_KURTOSIS_SPANS, checked_signal, kurtosis_span_edges
 
 TOOTH1_DEG = 337.4
 
@@ -183,8 +184,36 @@ def test_raw_signal_metrics_against_scipy(spalled: SyntheticRecord) -> None:
         record_of(spalled), campaign_for(spalled), input_sha256="f" * 64
     ).channels[0]
     x = spalled.acceleration
-    assert channel.metrics["raw_kurtosis"] == pytest.approx(scipy.stats.kurtosis(x, fisher=False))
+    edges = kurtosis_span_edges(x.size)
+    assert 1 < edges.size - 1 <= RAW_KURTOSIS_SPANS  # a 3-s record: 14 spans of 4096+ samples
+    spans = np.split(x, edges[1:-1])
+    assert channel.metrics["raw_kurtosis"] == pytest.approx(
+        np.average([scipy.stats.kurtosis(span, fisher=False) for span in spans],
+                   weights=[span.size for span in spans]))
     assert channel.metrics["raw_rms"] == pytest.approx(np.std(x))
+
+
+def test_raw_kurtosis_does_not_see_a_level_that_drifts_along_the_record() -> None:
+    """A speed sweeping through a resonance makes the vibration's level rise and fall within the
+    record; the whole record's kurtosis then rises (a mix of Gaussians of different variance),
+    each span's does not. An impulse every revolution raises both."""
+    import scipy.stats
+
+    rng = np.random.default_rng(11)
+    n = 200_000
+    level = 1.0 + 0.8 * np.exp(-(((np.arange(n) - 0.6 * n) / (0.12 * n)) ** 2))  # a resonance passed
+    swept = rng.normal(size=n) * level
+    impulsive = rng.normal(size=n)
+    impulsive[::400] += 8.0 * rng.choice([-1.0, 1.0], size=impulsive[::400].size)
+
+    def raw_kurtosis(x: np.ndarray) -> float:
+        return checked_signal(RecordData({"acc": x}, 20_000.0), "acc", 1 << 16,
+                              AnalysisParameters()).raw_metrics["raw_kurtosis"]
+
+    assert scipy.stats.kurtosis(swept, fisher=False) > 3.4  # the whole record's is lifted
+    assert raw_kurtosis(swept) == pytest.approx(3.0, abs=0.1)
+    assert raw_kurtosis(impulsive) == pytest.approx(scipy.stats.kurtosis(impulsive, fisher=False), rel=0.05)
+    assert raw_kurtosis(impulsive) > 4.0
 
 
 def test_explicit_na4_baseline_changes_na4_only(spalled: SyntheticRecord) -> None:
