@@ -405,7 +405,9 @@ def align_fingerprint(
             f"no confirmation by the per-tooth energy pattern: {no_confirmation_reason}"
             if no_confirmation_reason
             else f"or < {min_confirmed_separation_z:g} with the per-tooth energy pattern's "
-            f"confirmation, which stands at {sector_z:.1f} < {min_sector_pattern_z:g}"
+            + (f"confirmation, which stands at {sector_z:.1f} < {min_sector_pattern_z:g}"
+               if sector_z < min_sector_pattern_z
+               else f"confirmation, which it has ({sector_z:.1f} ≥ {min_sector_pattern_z:g})")
         )
         return FrameAlignment(
             None, correlation, runner_up, margin,

@@ -147,6 +147,20 @@ def test_an_ambiguous_pattern_is_refused_with_the_margin() -> None:
     assert "margin" in alignment.refusal and alignment.margin < 0.05  # the two halves fit alike
 
 
+def test_a_refusal_says_whether_the_energy_pattern_confirmed_the_shift() -> None:
+    """The refusal names the bar that was missed: a confirming energy pattern is not reported as
+    one below its level (the message read "stands at 4.2 < 2.5")."""
+    record = np.roll(gear_average(), 5 * SPM) + 0.02 * np.random.default_rng(9).standard_normal(N)
+    fingerprint, reference = tooth_fingerprint(record, TEETH), tooth_fingerprint(gear_average(), TEETH)
+    confirmed = align_fingerprint(fingerprint, reference, TEETH, min_separation_z=1e9,
+                                  min_confirmed_separation_z=1e9, min_sector_pattern_z=0.0)
+    assert confirmed.shift_teeth is None and confirmed.sector_pattern_z > 0.0
+    assert f"which it has ({confirmed.sector_pattern_z:.1f} ≥ 0)" in confirmed.refusal
+    unconfirmed = align_fingerprint(fingerprint, reference, TEETH, min_separation_z=1e9,
+                                    min_confirmed_separation_z=1e9, min_sector_pattern_z=1e9)
+    assert f"which stands at {unconfirmed.sector_pattern_z:.1f} < 1e+09" in unconfirmed.refusal
+
+
 def smooth_average(seed: int, noise: float, teeth: int = 61) -> np.ndarray:
     """A wheel whose tooth pattern is mostly smooth (runout, a slow index error: orders 1–3)
     with a small tooth-to-tooth part: neighbouring shifts correlate almost as well."""
