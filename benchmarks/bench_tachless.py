@@ -49,6 +49,9 @@ always passes), and ``GW_SPEED_STUDY=1`` adds to each row the days' spectrum spe
 the tach's and the line families' scores (docs/tachless.md, "Can the spectrum's speed be
 trusted").
 
+``--seconds`` sets the record length (default 4 s, about 67 revolutions; the project's campaigns
+record 12 s): docs/tachless.md, "Record length", has both on fresh seeds 10010–10049.
+
 Seeds 1000–1009 were used while choosing the refusal thresholds of :mod:`dsp.toothframe`
 (development); the table reports them apart from the held-out seeds 2000–2019. Later sessions
 spent further ranges once each (3000–9219, docs/tachless.md); 1000–1019 were dumped to choose the
