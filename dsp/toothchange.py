@@ -419,9 +419,7 @@ def windowed_change_scores(
     would otherwise all score like it. Width 1 alone is :func:`change_scores`. Why: a spall's
     transient reaches the sensor through a path that rings; with many teeth (a short mesh
     period) its energy spreads over the next few sectors, and each alone stands out less than
-    their sum. Which tooth is named is still decided sector by sector. Widths of as many teeth as
-    the wheel has, or more, are left out (a 3-tooth pinion is scored tooth by tooth, a 4-tooth
-    one by single teeth and pairs).
+    their sum. Which tooth is named is still decided sector by sector.
 
     Chosen offline on the stored averages of ``benchmarks/bench_detection.py``'s ``tune`` and
     ``tune-2`` parts (seeds 0–159, the ``change`` rule alone; widths (1, 2), (1, 2, 4), (1, 3)
@@ -454,10 +452,10 @@ def windowed_change_scores(
     best = single.copy()
     teeth = np.arange(values.size)
     for width in widths:
-        if int(width) < 1:
-            raise ValueError(f"window widths must be at least 1 tooth, got {width}")
-        if int(width) == 1 or int(width) >= values.size:
-            continue  # a run of every tooth (or more) stands out of nothing
+        if not 1 <= int(width) < values.size:
+            raise ValueError(f"window widths must be from 1 to fewer than the teeth, got {width}")
+        if int(width) == 1:
+            continue
         members = (teeth[:, None] + np.arange(int(width))[None, :]) % values.size  # run k: k … k+w−1
         run_energy = values[members].sum(axis=1)
         run_loudness = None if loudness is None else loudness[members].sum(axis=1)

@@ -271,15 +271,3 @@ def test_a_transient_rung_out_over_several_teeth_scores_higher_on_its_loudest_to
     lone[40] = 3.0
     assert int(np.argmax(windowed_change_scores(lone))) == 40
     assert windowed_change_scores(lone)[40] == pytest.approx(change_scores(lone)[40])
-
-
-def test_runs_as_wide_as_the_wheel_are_left_out() -> None:
-    """The manifest allows 3-tooth pinions: a 3-tooth wheel is scored tooth by tooth, a 4-tooth
-    one by single teeth and pairs (no error)."""
-    three = np.array([1.0, 1.1, 3.0])
-    np.testing.assert_array_equal(windowed_change_scores(three), change_scores(three))
-    four = np.array([1.0, 1.1, 3.0, 2.9])
-    assert np.all(np.isfinite(windowed_change_scores(four)))
-    assert windowed_change_scores(four, widths=(1, 4)).tolist() == change_scores(four).tolist()
-    with pytest.raises(ValueError, match="at least 1 tooth"):
-        windowed_change_scores(three, widths=(0, 1))
