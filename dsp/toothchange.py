@@ -50,10 +50,7 @@ Method
    a scaled χ² with about ``samples_per_mesh`` degrees of freedom, whose log is close to
    Gaussian; the record's own spread over its teeth is the noise unit, so no noise model is
    assumed, and a change that moves all teeth together (a noisier day, a drift of the path)
-   moves the median, not the score. **Runs of teeth** (:func:`windowed_change_scores`): the
-   same score over runs of 2 and 4 consecutive sectors, less ``0.5·log₂`` of the run's width,
-   given to the run's own highest tooth; a tooth keeps the best of its scores. A transient that
-   a ringing path spreads over the next sectors then counts whole.
+   moves the median, not the score.
 6. **Loud teeth change more** (``signature_energy``): a tooth with a strong manufacturing
    signature (an index error, a profile error) changes more with the day's load and speed than
    a quiet one, beyond the first-order part the projection removes. Each record says how much:
@@ -115,7 +112,6 @@ Edge cases
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -167,15 +163,6 @@ WHITENING_FLOOR_FRACTION = 0.1
 orders beyond the sensor's or the anti-alias filter's band hold next to nothing, and dividing by
 next to nothing would let round-off and interpolation residue there outweigh the band the gear
 is heard in."""
-
-WINDOW_TEETH = (1, 2, 4)
-"""Widths, in teeth, of the runs of consecutive sectors scored together
-(:func:`windowed_change_scores`): a transient rung out by the transfer path spreads over several
-teeth when the mesh period is short against the ringing."""
-
-WINDOW_PENALTY = 0.5
-"""A run of ``w`` teeth scores ``z_w − WINDOW_PENALTY·log₂ w``: the best of several widths is
-a larger number under noise alone than one width's, and wider runs count more of the noise."""
 
 _MIN_LOG_SPREAD = 1e-3
 """Smallest spread of ``ln E`` over the teeth (nepers) used as the score's unit."""
@@ -404,69 +391,6 @@ def change_scores(
     return scores
 
 
-def windowed_change_scores(
-    energy: ArrayLike,
-    signature_energy: ArrayLike | None = None,
-    widths: Sequence[int] = WINDOW_TEETH,
-    penalty: float = WINDOW_PENALTY,
-) -> NDArray[np.float64]:
-    """Each tooth's best :func:`change_scores` over runs of ``widths`` consecutive teeth.
-
-    For each width ``w`` the energies (and loudness) of teeth ``k … k+w−1`` (circularly) are
-    summed and scored over the runs like single teeth; tooth ``k`` gets the highest
-    ``z_w(k) − penalty·log₂ w``, and each run's score is given to the run's own highest tooth
-    (by its single-tooth score), not to every tooth it holds: the teeth just before a loud one
-    would otherwise all score like it. Width 1 alone is :func:`change_scores`. Why: a spall's
-    transient reaches the sensor through a path that rings; with many teeth (a short mesh
-    period) its energy spreads over the next few sectors, and each alone stands out less than
-    their sum. Which tooth is named is still decided sector by sector.
-
-    Chosen offline on the stored averages of ``benchmarks/bench_detection.py``'s ``tune`` and
-    ``tune-2`` parts (seeds 0–159, the ``change`` rule alone; widths (1, 2), (1, 2, 4), (1, 3)
-    and penalties 0, 0.5, 1 compared): independent generator, 80 spalled campaigns, alarmed by
-    the day after onset 22 → 25, by the second day 43 → 46, on the spalled tooth 45 → 48; project
-    generator unchanged (75 / 79 / 79 of 80); no healthy campaign of 80 + 80 alarmed, as before.
-    Without a penalty, widths (1, 2) and (1, 2, 4) alarmed one healthy campaign. Held out
-    afterwards, once (``held-out-8`` at 30 revolutions, seeds 80000–80199, generated fresh;
-    one tooth → runs): independent generator, 100 spalled, by the day after onset 27 → 35, by the
-    second 51 → 55, on the spalled tooth 57 → 55; project generator on the onset day 91 → 96, by
-    the next 99 → 100, on the spalled tooth 99 → 100; healthy campaigns with a ``change`` alarm
-    1 → 2 and 3 → 4 of 100 — the price, both new ones raised by the CUSUM (a best of three
-    widths sits a little higher under noise, and the CUSUM adds up what passes its k = 2.5).
-
-    Examples
-    --------
-    A transient rung out over teeth 6–9 (of 40) beside noise: tooth 6 alone scores 2.5, the
-    runs that hold it and are named after it score more.
-
-    >>> rng = np.random.default_rng(7)
-    >>> energy = rng.chisquare(64, 40) / 64
-    >>> energy[5:9] += [0.5, 0.45, 0.4, 0.35]
-    >>> single, best = change_scores(energy), windowed_change_scores(energy)
-    >>> int(np.argmax(best)) + 1, round(float(single[5]), 1), round(float(best[5]), 1)
-    (6, 2.5, 3.0)
-    """
-    values = np.asarray(energy, dtype=np.float64)
-    loudness = None if signature_energy is None else np.asarray(signature_energy, dtype=np.float64)
-    single = change_scores(values, loudness)
-    best = single.copy()
-    teeth = np.arange(values.size)
-    for width in widths:
-        if not 1 <= int(width) < values.size:
-            raise ValueError(f"window widths must be from 1 to fewer than the teeth, got {width}")
-        if int(width) == 1:
-            continue
-        members = (teeth[:, None] + np.arange(int(width))[None, :]) % values.size  # run k: k … k+w−1
-        run_energy = values[members].sum(axis=1)
-        run_loudness = None if loudness is None else loudness[members].sum(axis=1)
-        scores = change_scores(run_energy, run_loudness) - penalty * math.log2(int(width))
-        # a run's score goes to its own highest tooth, so that the teeth before a loud one
-        # do not share its score through the runs that reach it
-        named = members[teeth, np.argmax(single[members], axis=1)]
-        np.maximum.at(best, named, scores)
-    return best
-
-
 def _loudness_factor(energy: NDArray[np.float64], signature: NDArray[np.float64]) -> NDArray[np.float64]:
     """``(median E + β·S_k) / median E`` per tooth (module docstring, step 6); ones when no tooth
     has a signature."""
@@ -599,7 +523,7 @@ def campaign_change_state(
                 signature, pinion_teeth, tooth1_pitch_angles_deg[index], lag_pitch=lag_pitch)
             reference_wave = np.fft.irfft(reference, lengths[index])
             floor = RESOLUTION_ENERGY_FRACTION * float(np.sum(reference_wave**2)) / pinion_teeth
-            scores = windowed_change_scores(np.fmax(energy, floor), loudness)
+            scores = change_scores(np.fmax(energy, floor), loudness)
         if len(earlier) < reference_records and (
             scores is None or float(np.max(scores)) <= REFERENCE_ADMIT_SCORE
         ):
