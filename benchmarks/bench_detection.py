@@ -27,8 +27,8 @@ study below). Generated records are cached under ``/tmp/gw-eval/`` as npz.
 Parts (never mixed; even seeds spalled, odd healthy): ``tune`` = seeds 0–59 and ``tune-2`` =
 60–159, used while choosing the rule settings; ``held-out`` = 10000–10199, ``held-out-2`` =
 20000–20199, ``held-out-3`` = 30000–30199, ``held-out-4`` = 40000–40199, ``held-out-5`` =
-50000–50199, ``held-out-6`` = 60000–60199, ``held-out-7`` = 70000–70199 and ``held-out-8`` =
-80000–80199, each run for a report once and then spent (see
+50000–50199, ``held-out-6`` = 60000–60199, ``held-out-7`` = 70000–70199, ``held-out-8`` =
+80000–80199 and ``held-out-9`` = 90000–90199, each run for a report once and then spent (see
 below which version each one measured; the ``held-out`` and ``held-out-2`` reports used their
 first 100 seeds, ``--limit 100``). ``--quick`` takes the first 12 campaigns of the part.
 
@@ -48,52 +48,70 @@ operator of a new rig gets, per tooth and whole record together. "Earlier than e
 metric" compares with FM4, the residual's kurtosis, kurtosis and raw kurtosis (difference energy
 alarms in nearly every healthy campaign: its first alarms are not detections).
 
-Measured 2026-11-29, two changes: the per-tooth ``change`` scores runs of 1, 2 and 4 teeth
-(:func:`dsp.toothchange.windowed_change_scores`; chosen offline on ``tune`` + ``tune-2``, seeds
-0–159, from every day's pinion average computed as here), and ``raw_kurtosis`` is the mean of the
-record's 16 time spans' kurtoses (:func:`gearwatch.usecases.signal_checks._raw_metrics`; chosen on
-stress campaigns of ``physics.independent.random_campaign``). ``held-out-8`` at 30 revolutions
-(seeds 80000–80199, generated fresh at this length; its first 40 / 20 seeds had been spent at 300
-revolutions only), run once with the previous code (``647cb4c``, a worktree on ``PYTHONPATH``)
-and once with this one, same cached records::
+Measured 2026-11-29. **Kept:** ``raw_kurtosis`` is the mean of the record's 16 time spans'
+kurtoses (:func:`gearwatch.usecases.signal_checks._raw_metrics`; chosen on stress campaigns of
+``physics.independent.random_campaign``, held out on others). **Tried and reverted:** the
+per-tooth ``change`` also scoring runs of 2 and 4 consecutive sectors, each run's score given to
+its loudest tooth, less 0.5 per doubling of the width (a path that rings spreads a spall's
+transient over the next sectors). Offline on every day's pinion average computed as here (the
+``change`` rule alone; campaigns per generator; "by +1" = alarmed by the day after onset):
 
-    held-out-8, 30 rev, previous → this       project                      independent
-    both per-tooth rules ≤onset / ≤+1 / ≤+2    94 / 100 / 100 → 98 / 100 / 100   10 / 27 / 51 → 10 / 35 / 55 %
-      … exact tooth                           97 → 97 %                    54 → 52 %
-      … healthy w/ FA                         3 → 4 of 100                 1 → 2 of 100
-    raw kurtosis ≤+1; healthy w/ FA           72 → 73 %; 3 → 3             1 → 2 %; 5 → 2
-    every enabled default rule ≤onset / ≤+1   97 / 100 → 99 / 100 %        11 / 33 → 11 / 38 %
-      … healthy w/ FA                         6 → 7 of 100                 8 → 6 of 100
-    per-tooth earlier than every classic      6 → 8 %                      24 → 30 %
-      … same day or earlier                   97 → 99 %                    90 → 93 %
+    ``change`` rule alone              independent: by +1, exact, healthy w/ FA   project: onset, healthy w/ FA
+    tune + tune-2 (0–159), one tooth   22 / 80, 45, 0 / 80                      75 / 80, 0 / 80
+      … runs of 1, 2, 4                25 / 80, 48, 0 / 80                      75 / 80, 0 / 80
+    held-out-8 (80000–80199), 30 rev   27 / 100, 57, 1 / 100                    91 / 100, 3 / 100
+      … runs of 1, 2, 4                35 / 100, 55, 2 / 100                    96 / 100, 4 / 100
+      … runs only on wheels ≥ 8 runs   (chosen on all of the above: 360 campaigns, 57 v 49 by +1
+                                        of 180, healthy 1 v 1; project 168 v 166, healthy 3 v 3)
+    held-out-9 (90000–90199), 30 rev   29 / 100, 57, 0 / 100                    89 / 100, 2 / 100
+      … runs on wheels ≥ 8 runs        31 / 100, 61, 1 / 100                    90 / 100, 6 / 100
 
-    this revision, full table
-    project simulator
+On the part generated after the last choice (``held-out-9``) the runs bought 2 and 1 earlier
+detections in 100 for 1 and 4 more healthy campaigns alarmed: reverted. What the runs see is
+real — the spalled tooth's energy does spread over the next sectors on rigs with many teeth —
+but the best of several widths is also a larger number under noise, and the rule's CUSUM adds up
+every excess over 2.5.
+
+``held-out-8`` at 30 revolutions (seeds 80000–80199; its first 40 / 20 seeds had been spent at 300
+revolutions only) was run through this benchmark with the previous code (``647cb4c``, a worktree
+on ``PYTHONPATH``) and with the runs of teeth and the span-mean raw kurtosis together, same cached
+records: raw kurtosis's healthy campaigns with an alarm 3 → 3 (project) and 5 → 2
+(independent), detections by the day after onset 72 → 73 % and 1 → 2 %. ``held-out-9``, run
+with the previous code and with this revision (the span-mean raw kurtosis alone):
+
+    held-out-9, 30 rev, previous → this       project                      independent
+    raw kurtosis ≤onset / ≤+1; healthy w/ FA   65 / 80 → 63 / 80 %; 3 → 4     1 / 1 → 0 / 0 %; 3 → 2
+    every enabled default rule ≤+1; healthy    100 → 100 %; 11 → 12 of 100   32 → 31 %; 6 → 6 of 100
+    per-tooth rules (unchanged)               98 / 100 % ≤onset / ≤+1, exact 96 %, 2 / 100 healthy
+                                              independent 11 / 29 %, exact 51 %, 0 / 100 healthy
+
+    this revision, full table (project, then independent)
     method                    ≤onset    ≤+1    ≤+2  never median  exact   only   FA/1k healthy w/ FA
-    tooth change (new)           96%   100%   100%     0%    0.0    97%    24%    2.89      4/100
-    per-tooth score              67%    84%    91%     8%    0.0    84%    75%    0.54      0/100
-    both per-tooth rules         98%   100%   100%     0%    0.0    97%    24%    3.26      4/100
-    FM4                          90%    99%   100%     0%    0.0   nan%   nan%    0.00      0/100
-    residual kurtosis            91%    99%    99%     1%    0.0   nan%   nan%    0.00      0/100
-    kurtosis                     64%    82%    88%    11%    0.0   nan%   nan%    0.00      0/100
-    raw kurtosis                 51%    73%    83%    16%    0.0   nan%   nan%    2.85      3/100
-    every enabled default rule   99%   100%   100%     0%    0.0   nan%   nan%    6.65      7/100
-    independent generator
-    tooth change (new)           10%    35%    55%    38%    1.0    52%    44%    1.27      2/100
-    per-tooth score               0%     4%    10%    82%    2.0    15%    13%    0.09      0/100
-    both per-tooth rules         10%    35%    55%    38%    1.0    52%    44%    1.35      2/100
-    FM4                           5%    17%    41%    48%    2.0   nan%   nan%    0.00      0/100
-    residual kurtosis             5%    17%    40%    48%    2.0   nan%   nan%    1.90      2/100
-    kurtosis                      0%     1%     6%    84%    3.0   nan%   nan%    0.95      0/100
-    raw kurtosis                  0%     2%     5%    90%    2.5   nan%   nan%    1.90      2/100
-    every enabled default rule   11%    38%    58%    34%    1.0   nan%   nan%    6.65      6/100
+    tooth change (new)           89%    93%    97%     3%    0.0    94%    22%    2.62      2/100
+    per-tooth score              76%    88%    94%     3%    0.0    93%    84%    0.58      0/100
+    both per-tooth rules         98%   100%   100%     0%    0.0    96%    23%    3.08      2/100
+    FM4                          96%    99%   100%     0%    0.0   nan%   nan%    1.90      2/100
+    residual kurtosis            97%    99%   100%     0%    0.0   nan%   nan%    5.71      6/100
+    kurtosis                     70%    86%    88%    10%    0.0   nan%   nan%    1.90      2/100
+    raw kurtosis                 63%    80%    85%    13%    0.0   nan%   nan%    3.81      4/100
+    every enabled default rule   99%   100%   100%     0%    0.0   nan%   nan%   15.24     12/100
+    tooth change (new)           11%    29%    51%    41%    2.0    51%    41%    0.94      0/100
+    per-tooth score               0%     5%    13%    79%    2.0    20%    19%    0.03      0/100
+    both per-tooth rules         11%    29%    51%    41%    2.0    51%    41%    0.96      0/100
+    FM4                           4%    14%    39%    50%    2.0   nan%   nan%    1.91      2/100
+    residual kurtosis             4%    17%    41%    51%    2.0   nan%   nan%    1.91      2/100
+    kurtosis                      0%     0%     3%    82%    3.0   nan%   nan%    0.95      1/100
+    raw kurtosis                  0%     0%     5%    88%    3.0   nan%   nan%    2.86      2/100
+    every enabled default rule   11%    31%    56%    36%    2.0   nan%   nan%    7.63      6/100
 
-What it says: earlier per-tooth alarms on both simulators for one more healthy campaign alarmed
-on each (both new ones raised by the ``change`` rule's CUSUM: the best of three widths sits a
-little higher under noise); on the independent simulator the operator's view alarms earlier *and*
-in fewer healthy campaigns (the raw kurtosis no longer rises with a speed swept through a
-resonance). The issue's targets stay unmet on the independent simulator (35 % by the day after
-onset against ≥ 95 %) and for false alarms on both.
+What it says: the span-mean raw kurtosis is a wash on the benchmark's records, whose speed drifts
+by ±4 % at most within a record (held-out-8 and -9 together: healthy campaigns with a raw-kurtosis
+alarm 6 → 7 of 200 on the project simulator, 8 → 4 of 200 on the independent one), and removes
+the false alarms that a speed swept through a resonance raises (the stress campaigns). On
+held-out-9 the operator's view alarms in 12 (project) and 6 (independent) of 100 healthy
+campaigns — mostly the whole-record rules (residual kurtosis alone 6 on the project simulator);
+the per-tooth rules in 2 and 0. The issue's targets stay unmet on the independent simulator (29 %
+by the day after onset) and for false alarms.
 
 Measured 2026-11-28 (a later session), the ``score`` rule with the teeth's pooled day-to-day
 spread (:func:`detection.alarms.pooled_spread`; ``--no-pooled-spread`` scores the same saved
@@ -571,6 +589,7 @@ PARTS = {
     "held-out-6": range(60000, 60200),
     "held-out-7": range(70000, 70200),
     "held-out-8": range(80000, 80200),
+    "held-out-9": range(90000, 90200),
 }
 """``held-out-2``: a second held-out range, first run after the change detector's revision that
 followed a look at ``held-out`` (so that one part stays unseen while the method was changed).
