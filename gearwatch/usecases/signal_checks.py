@@ -10,6 +10,7 @@ one-line reason.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
@@ -154,14 +155,13 @@ def checked_signal(
         if shift is None:  # moments about a value near the mean: sums do not cancel
             first_good = block[:1024] if kept is None else block[kept][:1024]
             shift = float(np.mean(first_good)) if first_good.size else None
-        # the time spans this block overlaps, each summed on its own
-        for span in range(max(int(np.searchsorted(span_edges, start, side="right")) - 1, 0), span_sums.shape[0]):
-            lo, hi = max(int(span_edges[span]), start) - start, min(int(span_edges[span + 1]), start + block.size) - start
-            if hi <= lo:
-                break
-            good = block[lo:hi] if kept is None else block[lo:hi][kept[lo:hi]]
-            span_sums[span] += extremes_and_moment_sums(good, shift or 0.0)[2]
-            span_samples[span] += good.size
+        # each time span's part of this block, summed on its own
+        cuts = np.clip(span_edges - start, 0, block.size)
+        for span, (lo, hi) in enumerate(pairwise(cuts.tolist())):
+            if hi > lo:
+                good = block[lo:hi] if kept is None else block[lo:hi][kept[lo:hi]]
+                span_sums[span] += extremes_and_moment_sums(good, shift or 0.0)[2]
+                span_samples[span] += good.size
         parts.append(defects.shifted(start))
     defects = SampleDefects.concatenate(parts)
     counts = defects.counts()
