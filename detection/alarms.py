@@ -95,6 +95,8 @@ INDICATOR_DIRECTIONS: dict[str, Direction] = {
     # per tooth, in standard errors of the record (dsp.toothscore)
     "score": "higher_is_worse",
     "mci_depth_se": "higher_is_worse",
+    # per tooth, the revolutions' power about the average against the record's teeth (dsp.nonsync)
+    "nonsync_z": "higher_is_worse",
     # per tooth, against the tooth's own earlier waveform (dsp.toothchange)
     "change": "higher_is_worse",
 }
@@ -108,9 +110,9 @@ starts with the first value: learning a second baseline from the first change sc
 only delay the first alarm by ``min_baseline_records`` and measure noise against noise."""
 
 
-RECORD_RELATIVE_INDICATORS: frozenset[str] = frozenset({"score"})
-"""Indicators that compare a tooth with the other teeth of the same record (:mod:`dsp.toothscore`:
-0 is the record's typical tooth). Their baseline centre is never below 0: on ``tune-2`` of
+RECORD_RELATIVE_INDICATORS: frozenset[str] = frozenset({"score", "nonsync_z"})
+"""Indicators that compare a tooth with the other teeth of the same record (:mod:`dsp.toothscore`,
+:mod:`dsp.nonsync`: 0 is the record's typical tooth). Their baseline centre is never below 0: on ``tune-2`` of
 ``benchmarks/bench_detection.py`` (project generator, 50 healthy campaigns) 3 of the 5 healthy
 campaigns with a ``score`` alarm were teeth scoring −4…−6 on their baseline days that rose to
 about 0 on a load change; with the centre at 0 none of those alarmed, for onset-day detections

@@ -27,10 +27,10 @@ Role = Literal["viewer", "operator", "admin"]
 AlarmState = Literal["warning", "alarm", "acknowledged", "cleared"]
 RecordStatus = Literal["accepted", "rejected", "pending"]
 ToothIndicatorName = Literal[
-    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score", "change"
+    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score", "nonsync_z", "change"
 ]
 AlarmIndicatorName = Literal[
-    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score", "change",
+    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score", "nonsync_z", "change",
     "rms", "peak", "crest", "kurtosis", "fm0", "fm4", "na4", "residual_kurtosis", "nb4", "m6a", "m8a",
     "er", "raw_rms", "raw_kurtosis",
 ]  # fmt: skip

@@ -37,6 +37,7 @@ _INFO: dict[str, tuple[str, str]] = {
     "diff_energy": ("difference-signal energy", CHANNEL_UNIT_SQUARED),
     "diff_kurtosis": ("difference-signal kurtosis", ""),
     "score": ("per-tooth score", BASELINE_UNITS),
+    "nonsync_z": ("non-synchronous power against the record's teeth", BASELINE_UNITS),
     "change": ("change against the tooth's own history", "noise units"),
     "mci_depth_se": ("MCI depth standard error", "Np"),
     # whole record

@@ -37,7 +37,9 @@ the pinion synchronous average, then ``raw_rms`` and ``raw_kurtosis`` of the raw
 its mean — the overall indicators that also see what the averages remove (non-synchronous faults
 such as bearings)."""
 
-TOOTH_INDICATORS = ("mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score")
+TOOTH_INDICATORS = (
+    "mci_depth", "diff_energy", "diff_kurtosis", "mci_depth_se", "score", "nonsync_z",
+)
 """Per-tooth indicators of one record's analysis, each stored as record × tooth × indicator."""
 
 HISTORY_TOOTH_INDICATORS = ("change",)
@@ -117,6 +119,11 @@ class ToothResult:
     its own standard errors (dimensionless; about N(0, 1) on a healthy record; effects common to
     all teeth — load, speed, gain, temperature — cancel). Its history is watched by the ``score``
     alarm rule (:mod:`detection.alarms`)."""
+    nonsync_z: float = float("nan")
+    """How far the non-synchronous power in this tooth's sector (the revolutions' power about
+    their average) stands above the record's typical tooth, in robust standard deviations over
+    the teeth (dimensionless; 0 = the median tooth). A spall's ringing that a drifting speed
+    smears out of the average stays here (:mod:`dsp.nonsync`)."""
 
     def indicators(self) -> dict[str, float]:
         return {name: float(getattr(self, name)) for name in TOOTH_INDICATORS}

@@ -26,6 +26,7 @@ import numpy as np
 
 from dsp.mci import moving_cepstrum_integral
 from dsp.metrics import crest_factor, envelope_variance, gear_metrics, kurtosis, peak, rms
+from dsp.nonsync import per_tooth_nonsync_z
 from dsp.quality import quality_score, sync_to_noise_db
 from dsp.shaftperiod import MODULI as PERIOD_MODULI
 from dsp.shaftperiod import PeriodCheck, check_shaft_period
@@ -706,7 +707,7 @@ def _tooth_results(
     frame_delay: float,
 ) -> tuple[list[ToothResult], np.ndarray]:
     """Per tooth: the MCI evidence with its standard error and score, the difference signal's
-    sector energy and kurtosis; and the scores."""
+    sector energy and kurtosis, the non-synchronous power's z; and the scores."""
     evidence, evidence_se, scores = _tooth_evidence(
         angle, mci_filtered, pinion_teeth, tooth1_pitch_angle_deg, window, params, frame_delay
     )
@@ -714,6 +715,9 @@ def _tooth_results(
     energy, sector_kurtosis = per_tooth_difference_stats(
         difference, pinion_teeth, tooth1_pitch_angle_deg
     )
+    nonsync_z = (np.full(pinion_teeth, np.nan) if angle.pinion_nonsync_power is None else
+                 per_tooth_nonsync_z(angle.pinion_nonsync_power, pinion_teeth,
+                                     tooth1_pitch_angle_deg, frame_delay_samples=frame_delay))
     pitch_angles = tooth_pitch_angles_deg(pinion_teeth, tooth1_pitch_angle_deg)
     teeth = [
         ToothResult(
@@ -724,10 +728,12 @@ def _tooth_results(
             score=float(scores[k]),
             diff_energy=float(energy[k]),
             diff_kurtosis=float(sector_kurtosis[k]),
+            nonsync_z=float(nonsync_z[k]),
         )
         for k in range(pinion_teeth)
     ]
     return teeth, scores
+
 
 
 def _tooth_evidence(

@@ -77,6 +77,10 @@ class AngleAverages:
     """With ``period_moduli``: what :func:`dsp.shaftperiod.check_shaft_period` needs of the
     accepted pinion revolutions (a tach-less angle whose speed came from the spectrum)."""
     gear_period_sums: PeriodSums | None = None
+    pinion_nonsync_power: np.ndarray | None = None
+    """Per pinion angle, the power of the accepted revolutions about the average,
+    ``Σ_i (rev_i − avg)² / (N − 1)`` (NaN with fewer than two): the energy a drifting speed
+    smears out of the average (:mod:`dsp.nonsync`)."""
 
 
 def _revolution_bounds_s(
@@ -208,11 +212,12 @@ def angle_averages(
         gear_sum += gear_good.sum(axis=0)
         gear_count += gear_good.shape[0]
     pinion_average = group_sums.sum(axis=0) / max(pinion_count, 1)
-    residual_power = (
-        float(np.mean(pinion_sumsq - pinion_count * pinion_average**2)) / (pinion_count - 1)
+    nonsync_power = (
+        np.clip(pinion_sumsq - pinion_count * pinion_average**2, 0.0, None) / (pinion_count - 1)
         if pinion_count > 1
-        else 0.0
+        else np.full(pinion_spr, np.nan)
     )
+    residual_power = float(np.mean(nonsync_power)) if pinion_count > 1 else 0.0
     return AngleAverages(
         pinion_average,
         pinion_count,
@@ -226,5 +231,6 @@ def angle_averages(
         rejected_gaps,
         None if pinion_period is None else pinion_period.result(),
         None if gear_period is None else gear_period.result(),
+        nonsync_power,
     )
 
