@@ -48,6 +48,38 @@ operator of a new rig gets, per tooth and whole record together. "Earlier than e
 metric" compares with FM4, the residual's kurtosis, kurtosis and raw kurtosis (difference energy
 alarms in nearly every healthy campaign: its first alarms are not detections).
 
+Measured 2026-11-29 (later session): **a drifting speed within a record delays the per-tooth
+alarms**, and a witness for it. On 24 stress campaigns of ``physics.independent.random_campaign``
+(seeds 9936–9959, 10-s records, whose speed drifts by 0–20 % — up to a 45 % range — within each
+record), the per-tooth alarm came 1–2 days after FM4 / the residual's kurtosis in three spalled
+campaigns, all with a large in-record drift (34 %, 18 %, 21 % ranges); the same campaigns with the
+drift set to 0 (same rig, days and noise) alarmed per tooth on days 4, 5, 6 instead of 6, 7, 6.
+The benchmark's own independent part says the same by drift bin (``tune`` + ``tune-2``, 30
+revolutions; per-tooth rules by the day after onset): drift < 7 % 41 % (29 spalled), 7–14 % 12 %
+(26), ≥ 14 % 28 % (25); ``tune`` at ``--revolutions 150``: 70 %, 18 %, 56 % (10, 11, 9 spalled).
+
+A ring in time lands at other angles in every revolution when the speed drifts, so the average
+loses it; its power stays in the revolutions about the average. ``nonsync_z``
+(:mod:`dsp.nonsync`) stores that power per tooth sector as a robust z over the record's teeth
+(known answers: ``tests/dsp/test_nonsync.py``, ``tests/gearwatch/test_nonsync_drift.py``). Its
+rule (``score``'s settings, spread floor 0.7; chosen on the stress seeds above and on ``tune`` /
+``tune-2``: no healthy campaign of 148 alarmed, the first per-tooth alarm a day earlier in 2 of 13
+spalled stress campaigns) was then run once on 40 fresh stress campaigns (seeds 9960–9999, 14
+healthy, 26 spalled): no healthy campaign alarmed; it brought two first per-tooth alarms forward
+by a day (9968, 9995) but on teeth 7–8 and 4–6 pitches after the spalled one, and added late-tooth
+alarms beside right ones in two more (9964, 9992) — the average keeps a long ring's first cycles,
+what it loses peaks later. The rule is therefore **created disabled**; the indicator is stored.
+At ``--revolutions 150`` (``tune``, independent): ``non-sync power`` alone 3 % / 17 % by onset /
++1, no healthy alarm, no detection the other per-tooth rules lacked.
+
+Also tried on ``tune`` (offline, on the saved per-day values) and not adopted: a joint rule on a
+tooth whose ``change`` and ``score`` both stand above a level (their minimum ≥ 3: no detection
+added on either generator; their sum ≥ 4: 1 of 30 healthy alarmed for 1 detection); the change
+rule's CUSUM over k = 1–2.5, h = 2–8 (every setting earlier than today's raised healthy alarms,
+the others detect no earlier); naming a tooth on the day a whole-record rule opens (the ``change``
+leader when ≥ 2–3.5 and 1–2× the runner-up: at most one detection added at the price of a healthy
+alarm).
+
 Measured 2026-11-29. **Kept:** ``raw_kurtosis`` is the mean of the record's 16 time spans'
 kurtoses (:func:`gearwatch.usecases.signal_checks._raw_metrics`; chosen on stress campaigns of
 ``physics.independent.random_campaign``, held out on others). **Tried and reverted:** the
@@ -904,7 +936,7 @@ def analyse_campaign(generator: str, spec: CampaignSpec) -> dict[str, Any]:
             "day": day,
             "truth": truth,
             "teeth": {name: [getattr(t, name) for t in channel.teeth]
-                      for name in ("mci_depth", "mci_depth_se", "score", "diff_energy")},
+                      for name in ("mci_depth", "mci_depth_se", "score", "diff_energy", "nonsync_z")},
             "metrics": channel.metrics,
             "baseline_stats": channel.baseline_stats,
             "worst_tooth": channel.worst_tooth,
@@ -939,8 +971,10 @@ def _generate(args: tuple[str, int]) -> None:
         print(f"seed {seed}: {type(error).__name__}: {error}", file=sys.stderr)
 
 
-NEW_METHOD = "both per-tooth rules"
-"""The per-tooth detector an operator gets: the default ``change`` and ``score`` rules together."""
+NEW_METHOD = "per-tooth rules"
+"""The per-tooth detector an operator gets: the default per-tooth rules together (``change``,
+``score`` and, from 2026-11-29, ``nonsync_z``; before that the table called them "both per-tooth
+rules")."""
 CLASSIC_METHODS = ("FM4", "residual kurtosis", "kurtosis", "raw kurtosis")
 """Whole-record classics the new detector is compared with (diff energy, per tooth with the
 whole-record statistic, alarms in almost every healthy campaign: its first alarms are not detections)."""
@@ -958,7 +992,8 @@ def _methods() -> dict[str, tuple[str, bool, dict[str, Any]]]:
     return {
         "tooth change (new)": ("change", True, dict(DEFAULT_RULES["change"])),
         "per-tooth score": ("score", True, dict(DEFAULT_RULES["score"])),
-        "both per-tooth rules": (BOTH_PER_TOOTH, True, {}),
+        "non-sync power": ("nonsync_z", True, classic("nonsync_z")),
+        NEW_METHOD: (BOTH_PER_TOOTH, True, {}),
         "today's MCI rule": ("mci_depth", True, {"spread_floor_abs": 0.1, "baseline_records": 3}),
         "FM4": ("fm4", False, classic("fm4")),
         "residual kurtosis": ("residual_kurtosis", False, classic("residual_kurtosis")),
@@ -970,10 +1005,12 @@ def _methods() -> dict[str, tuple[str, bool, dict[str, Any]]]:
     }
 
 
-BOTH_PER_TOOTH = "change+score"
-"""What an operator of a rig with the default rules sees per tooth: the alarms of the ``change``
-and the ``score`` rules together. On a day both open alarms on, the tooth named is the
-``change`` rule's (it names the right tooth more often on both generators)."""
+BOTH_PER_TOOTH = "change+score+nonsync"
+"""What an operator of a rig with the default rules sees per tooth: the alarms of the ``change``,
+``score`` and ``nonsync_z`` rules together (each when enabled by default). On a day several open
+alarms on, the tooth named is the ``change`` rule's (it names the right tooth more often on both
+generators), then the highest-scoring."""
+PER_TOOTH_RULES = ("change", "score", "nonsync_z")
 _NAMING_PRIORITY = 1e6
 OPERATOR_VIEW = "every enabled default rule"
 """What an operator of a new rig gets: the openings of every rule of
@@ -1016,12 +1053,19 @@ def evaluate(result: dict[str, Any], indicator: str, per_tooth: bool, settings: 
         step,
     )
     from detection.default_rules import DEFAULT_RULES
+    from gearwatch.floor.results import STORED_TOOTH_INDICATORS
 
     if indicator == BOTH_PER_TOOTH:
-        change = evaluate(result, "change", True, dict(DEFAULT_RULES["change"]))
-        score = evaluate(result, "score", True, dict(DEFAULT_RULES["score"]))
+        def rule(name: str) -> dict[str, Any]:
+            return {k: v for k, v in DEFAULT_RULES[name].items() if k != "enabled"}
+
+        change = evaluate(result, "change", True, rule("change"))
+        others = [opening for name in PER_TOOTH_RULES[1:]
+                  if DEFAULT_RULES[name].get("enabled", True) is not False
+                  and all(name in day["teeth"] for day in result["days"] if "teeth" in day)
+                  for opening in evaluate(result, name, True, rule(name))]
         merged: dict[tuple[int, int], tuple[int, int, str, float]] = {}
-        for opening in [(d, t, e, v + _NAMING_PRIORITY) for d, t, e, v in change] + score:
+        for opening in [(d, t, e, v + _NAMING_PRIORITY) for d, t, e, v in change] + others:
             key = opening[:2]  # one opening per tooth-day, whichever rule opened it
             if key not in merged or opening[3] > merged[key][3]:
                 merged[key] = opening
@@ -1030,9 +1074,9 @@ def evaluate(result: dict[str, Any], indicator: str, per_tooth: bool, settings: 
     if indicator == OPERATOR_VIEW:
         openings = evaluate(result, BOTH_PER_TOOTH, True, {})
         for name, rule_settings in DEFAULT_RULES.items():
-            if name in ("change", "score") or rule_settings.get("enabled", True) is False:
+            if name in PER_TOOTH_RULES or rule_settings.get("enabled", True) is False:
                 continue
-            per_tooth_rule = name in ("mci_depth",)
+            per_tooth_rule = name in STORED_TOOTH_INDICATORS
             openings += evaluate(result, name, per_tooth_rule, dict(rule_settings))
         return sorted(openings)
     if indicator == NA4_STORED:

@@ -68,7 +68,8 @@ def test_accepted_record_keeps_raw_file_and_stores_results(db_session, store, tm
     assert [p.value for p in trend] == [pytest.approx(1.0, abs=1e-3)]
     # A new rig gets the default alarm rules.
     assert {r.indicator for r in AlarmRuleRepository(db_session).list(record.rig_id)} == {
-        "mci_depth", "score", "change", "fm4", "na4", "residual_kurtosis", "kurtosis", "raw_kurtosis"}
+        "mci_depth", "score", "change", "nonsync_z", "fm4", "na4", "residual_kurtosis", "kurtosis",
+        "raw_kurtosis"}
 
 
 def test_ingesting_the_same_file_again_changes_nothing(db_session, store, tmp_path) -> None:

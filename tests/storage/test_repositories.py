@@ -314,7 +314,8 @@ def test_alarm_rule_crud_and_validation(db_session: Session) -> None:
     rules = AlarmRuleRepository(db_session)
     defaults = rules.ensure_defaults(campaign.rig_id)
     assert sorted(r.indicator for r in defaults) == [
-        "change", "fm4", "kurtosis", "mci_depth", "na4", "raw_kurtosis", "residual_kurtosis", "score",
+        "change", "fm4", "kurtosis", "mci_depth", "na4", "nonsync_z", "raw_kurtosis",
+        "residual_kurtosis", "score",
     ]
     assert len(rules.ensure_defaults(campaign.rig_id)) == len(DEFAULT_RULES)  # idempotent
     # the running-baseline NA4 is there for whoever wants it, but off: a gain step moves it
