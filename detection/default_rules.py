@@ -66,7 +66,7 @@ warning; at 4.5, 0 and 2; at 5, 0 and 0, for one onset-day detection fewer than 
 noise alone the highest of 80 teeth passes 5 in well under 1 % of records
 (``tests/dsp/test_toothchange.py``)."""
 
-NONSYNC_RULE: dict[str, Any] = {
+SCORE_RULE: dict[str, Any] = {
     "baseline_records": 8,
     "min_baseline_records": 3,
     "warning_level": 5.0,
@@ -74,11 +74,13 @@ NONSYNC_RULE: dict[str, Any] = {
     "clear_level": 2.0,
     "persistence": 2,
     "spread_floor_fraction": 0.25,
-    "spread_floor_abs": 0.7,
+    "spread_floor_abs": 1.0,
     "cusum_reference": 3.0,
     "cusum_limit": 3.0,
-    "enabled": False,
 }
+"""The rule on ``score`` (the note of :data:`DEFAULT_RULES`)."""
+
+NONSYNC_RULE: dict[str, Any] = dict(SCORE_RULE, spread_floor_abs=0.7, enabled=False)
 """The rule on ``nonsync_z`` (:mod:`dsp.nonsync`: a tooth's non-synchronous power against the
 record's other teeth, a robust z), watched against the tooth's own history like ``score``: the
 same levels and CUSUM, the spread never below 0.7 (a healthy tooth's ``nonsync_z`` moves by
@@ -109,18 +111,7 @@ DEFAULT_RULES: dict[str, dict[str, Any]] = {
     # the former per-tooth default, kept so that existing rigs, dashboards and scripts that look
     # for it still find it (its fixed 0.1 Np floor: see the note below and the benchmark)
     "mci_depth": {"spread_floor_abs": 0.1},
-    "score": {
-        "baseline_records": 8,
-        "min_baseline_records": 3,
-        "warning_level": 5.0,
-        "alarm_level": 6.0,
-        "clear_level": 2.0,
-        "persistence": 2,
-        "spread_floor_fraction": 0.25,
-        "spread_floor_abs": 1.0,
-        "cusum_reference": 3.0,
-        "cusum_limit": 3.0,
-    },
+    "score": SCORE_RULE,
     "change": CHANGE_RULE,
     "nonsync_z": NONSYNC_RULE,
     "fm4": dict(WHOLE_RECORD_RULE, spread_floor_fraction=0.10),
