@@ -622,6 +622,7 @@ PARTS = {
     "held-out-7": range(70000, 70200),
     "held-out-8": range(80000, 80200),
     "held-out-9": range(90000, 90200),
+    "held-out-10": range(100000, 100200),
 }
 """``held-out-2``: a second held-out range, first run after the change detector's revision that
 followed a look at ``held-out`` (so that one part stays unseen while the method was changed).

@@ -16,7 +16,7 @@ Measured (2026-11-29) on campaigns of :func:`physics.independent.random_campaign
 a pit on pinion tooth 9 of 23 (seed 9943, the speed drifting over a 34 % range within each
 record) raised the tooth's ``change`` to 4.0 on the day after onset, short of an alarm; the same
 campaign at a steady speed gave 6.9. On the drifting records the non-synchronous power of the
-tooth's sector stood 4.6 robust standard deviations above the record's other teeth on that day
+tooth's sector stood 4.1 robust standard deviations above the record's other teeth on that day
 (healthy days: −1.0 … −0.4), the largest tooth every day after onset.
 
 :func:`per_tooth_nonsync_z` is the indicator gearwatch stores (``nonsync_z``): the robust z of the

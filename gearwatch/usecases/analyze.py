@@ -735,7 +735,6 @@ def _tooth_results(
     return teeth, scores
 
 
-
 def _tooth_evidence(
     angle: AngleAverages,
     mci_filtered: np.ndarray,
