@@ -64,7 +64,7 @@ loses it; its power stays in the revolutions about the average. ``nonsync_z``
 (:mod:`dsp.nonsync`) stores that power per tooth sector as a robust z over the record's teeth
 (known answers: ``tests/dsp/test_nonsync.py``, ``tests/gearwatch/test_nonsync_drift.py``). Its
 rule (``score``'s settings, spread floor 0.7; chosen on the stress seeds above and on ``tune`` /
-``tune-2``: no healthy campaign of 148 alarmed, the first per-tooth alarm a day earlier in 2 of 13
+``tune-2``: no healthy campaign of 148 alarmed, the first per-tooth alarm a day earlier in 2 of 16
 spalled stress campaigns) was then run once on 40 fresh stress campaigns (seeds 9960–9999, 14
 healthy, 26 spalled): no healthy campaign alarmed; it brought two first per-tooth alarms forward
 by a day (9968, 9995) but on teeth 7–8 and 4–6 pitches after the spalled one, and added late-tooth
