@@ -96,8 +96,10 @@ spalled campaigns.
 Also tried on ``tune`` (offline, on the saved per-day values) and not adopted: a joint rule on a
 tooth whose ``change`` and ``score`` both stand above a level (their minimum ≥ 3: no detection
 added on either generator; their sum ≥ 4: 1 of 30 healthy alarmed for 1 detection); the change
-rule's CUSUM over k = 1–2.5, h = 2–8 (every setting earlier than today's raised healthy alarms,
-the others detect no earlier); naming a tooth on the day a whole-record rule opens (the ``change``
+rule's CUSUM over k = 1–2.5, h = 2–8 (every setting that detected earlier than today's raised a
+healthy alarm on one of the generators — k = 2, h = 2: one more onset-day detection of 30 on the
+project's, one healthy campaign alarmed of 30 on the independent one — and the others detected no
+earlier); naming a tooth on the day a whole-record rule opens (the ``change``
 leader when ≥ 2–3.5 and 1–2× the runner-up: at most one detection added at the price of a healthy
 alarm).
 
@@ -994,9 +996,9 @@ def _generate(args: tuple[str, int]) -> None:
 
 
 NEW_METHOD = "per-tooth rules"
-"""The per-tooth detector an operator gets: the default per-tooth rules together (``change``,
-``score`` and, from 2026-11-29, ``nonsync_z``; before that the table called them "both per-tooth
-rules")."""
+"""The per-tooth detector an operator gets: the default per-tooth rules that are created enabled,
+together (``change`` and ``score``; ``nonsync_z`` would join them if its rule were enabled). Until
+2026-11-29 the table called them "both per-tooth rules"."""
 CLASSIC_METHODS = ("FM4", "residual kurtosis", "kurtosis", "raw kurtosis")
 """Whole-record classics the new detector is compared with (diff energy, per tooth with the
 whole-record statistic, alarms in almost every healthy campaign: its first alarms are not detections)."""
