@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from dsp.teeth import per_tooth_difference_stats
+from dsp.teeth import tooth_sector_masks
 from dsp.toothchange import DEFAULT_LAG_PITCH, change_scores
 from dsp.toothframe import circular_shift
 
@@ -83,12 +83,15 @@ def per_tooth_nonsync_power(
     if power.ndim != 1:
         raise ValueError(f"nonsync_power must be one revolution (1-D), got shape {power.shape}")
     teeth = int(pinion_teeth)
-    # the sector mean square of √P is the sector mean of P, relative to the revolution's
-    energy, _ = per_tooth_difference_stats(
-        np.sqrt(power), teeth, tooth1_pitch_angle_deg,
+    masks = tooth_sector_masks(
+        power.size, teeth, tooth1_pitch_angle_deg,
         transfer_delay_deg=float(lag_pitch) * 360.0 / max(teeth, 1),
     )
-    return energy
+    mean = float(np.mean(power))
+    if mean <= 0.0:
+        return np.ones(teeth)
+    sector_mean: NDArray[np.float64] = (masks @ power) / masks.sum(axis=1) / mean
+    return sector_mean
 
 
 def per_tooth_nonsync_z(

@@ -715,9 +715,8 @@ def _tooth_results(
     energy, sector_kurtosis = per_tooth_difference_stats(
         difference, pinion_teeth, tooth1_pitch_angle_deg
     )
-    nonsync_z = (np.full(pinion_teeth, np.nan) if angle.pinion_nonsync_power is None else
-                 per_tooth_nonsync_z(angle.pinion_nonsync_power, pinion_teeth,
-                                     tooth1_pitch_angle_deg, frame_delay_samples=frame_delay))
+    nonsync_z = per_tooth_nonsync_z(angle.pinion_nonsync_power, pinion_teeth,
+                                    tooth1_pitch_angle_deg, frame_delay_samples=frame_delay)
     pitch_angles = tooth_pitch_angles_deg(pinion_teeth, tooth1_pitch_angle_deg)
     teeth = [
         ToothResult(

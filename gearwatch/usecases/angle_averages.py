@@ -70,6 +70,10 @@ class AngleAverages:
     """(JACKKNIFE_GROUPS, pinion_spr): sums of the accepted pinion revolutions r with
     r mod K = group (the jackknife SE of the tooth evidence, :mod:`dsp.toothscore`)."""
     pinion_group_counts: np.ndarray
+    pinion_nonsync_power: np.ndarray
+    """Per pinion angle, the power of the accepted revolutions about the average,
+    ``Σ_i (rev_i − avg)² / (N − 1)`` (NaN with fewer than two): the energy a drifting speed
+    smears out of the average (:mod:`dsp.nonsync`)."""
     rejected_tach_gaps: int = 0
     """Pinion revolutions dropped because their angle rests on bridged tach pulses
     (:attr:`dsp.tach.TachAnalysis.bridged_spans_s`)."""
@@ -77,10 +81,6 @@ class AngleAverages:
     """With ``period_moduli``: what :func:`dsp.shaftperiod.check_shaft_period` needs of the
     accepted pinion revolutions (a tach-less angle whose speed came from the spectrum)."""
     gear_period_sums: PeriodSums | None = None
-    pinion_nonsync_power: np.ndarray | None = None
-    """Per pinion angle, the power of the accepted revolutions about the average,
-    ``Σ_i (rev_i − avg)² / (N − 1)`` (NaN with fewer than two): the energy a drifting speed
-    smears out of the average (:mod:`dsp.nonsync`)."""
 
 
 def _revolution_bounds_s(
@@ -225,12 +225,12 @@ def angle_averages(
         gear_count,
         rejected_defective,
         rejected_outliers,
-        max(residual_power, 0.0),
+        residual_power,
         group_sums,
         group_counts,
+        nonsync_power,
         rejected_gaps,
         None if pinion_period is None else pinion_period.result(),
         None if gear_period is None else gear_period.result(),
-        nonsync_power,
     )
 
