@@ -15,14 +15,15 @@ Evaluation set
 --------------
 Each campaign is drawn from its seed (fixed seed ranges, below): pinion teeth 13–80 and a random
 ratio (gear teeth 1.05–3.5× the pinion's), contact ratio 1.3–2.0 (pressure angle and addendum
-solved for it), noise 0.3–3× the clean signal's rms, slow speed drift within a record (±4 %),
-day-to-day load ±10 % and speed ±5 %, a sensor gain step (×0.5–2) from a random day on, glitch
-samples (1–3 samples at ±20× rms in 30 % of records), structural modes drawn per campaign (a
-second mode always present), sensor direction (line of action, or off the line with sliding
-friction), 7 daily records, onset on day 4 or 5 for spalled campaigns, the spall starting at
-3–6 µm and doubling each day up to 25 µm, its extent 0.1–0.6 of the path of contact. Records
-hold ≥ 30 pinion revolutions (mesh frequency 300–700 Hz; ``--revolutions N`` for the record-length
-study below). Generated records are cached under ``/tmp/gw-eval/`` as npz.
+solved for it), noise 0.3–3× the clean signal's rms, slow speed drift within a record (±4 %; the
+independent generator draws its own, 0–20 %), day-to-day load ±10 % and speed ±5 %, a sensor gain
+step (×0.5–2) from a random day on, glitch samples (1–3 samples at ±20× rms in 30 % of records),
+structural modes drawn per campaign (a second mode always present), sensor direction (line of
+action, or off the line with sliding friction), 7 daily records, onset on day 4 or 5 for spalled
+campaigns, the spall starting at 3–6 µm and doubling each day up to 25 µm, its extent 0.1–0.6 of
+the path of contact. Records hold ≥ 30 pinion revolutions (mesh frequency 300–700 Hz;
+``--revolutions N`` for the record-length study below). Generated records are cached under
+``/tmp/gw-eval/`` as npz.
 
 Parts (never mixed; even seeds spalled, odd healthy): ``tune`` = seeds 0–59 and ``tune-2`` =
 60–159, used while choosing the rule settings; ``held-out`` = 10000–10199, ``held-out-2`` =
@@ -159,14 +160,13 @@ with the previous code and with this revision (the span-mean raw kurtosis alone)
     raw kurtosis                  0%     0%     5%    88%    3.0   nan%   nan%    2.86      2/100
     every enabled default rule   11%    31%    56%    36%    2.0   nan%   nan%    7.63      6/100
 
-What it says: the span-mean raw kurtosis is a wash on the benchmark's records, whose speed drifts
-by ±4 % at most within a record (held-out-8 and -9 together: healthy campaigns with a raw-kurtosis
-alarm 6 → 7 of 200 on the project simulator, 8 → 4 of 200 on the independent one), and removes
-the false alarms that a speed swept through a resonance raises (the stress campaigns). On
-held-out-9 the operator's view alarms in 12 (project) and 6 (independent) of 100 healthy
-campaigns — mostly the whole-record rules (residual kurtosis alone 6 on the project simulator);
-the per-tooth rules in 2 and 0. The issue's targets stay unmet on the independent simulator (29 %
-by the day after onset) and for false alarms.
+What it says: the span-mean raw kurtosis is a wash on the benchmark's 30-revolution records
+(held-out-8 and -9 together: healthy campaigns with a raw-kurtosis alarm 6 → 7 of 200 on the
+project simulator, 8 → 4 of 200 on the independent one), and removes the false alarms that a speed
+swept through a resonance raises (the stress campaigns). On held-out-9 the operator's view alarms
+in 12 (project) and 6 (independent) of 100 healthy campaigns — mostly the whole-record rules
+(residual kurtosis alone 6 on the project simulator); the per-tooth rules in 2 and 0. The issue's
+targets stay unmet on the independent simulator (29 % by the day after onset) and for false alarms.
 
 Measured 2026-11-28 (a later session), the ``score`` rule with the teeth's pooled day-to-day
 spread (:func:`detection.alarms.pooled_spread`; ``--no-pooled-spread`` scores the same saved
@@ -1006,13 +1006,17 @@ METHODS: dict[str, tuple[str, bool, dict[str, Any]]] = {}
 """name → (indicator, per tooth, RuleSettings keyword arguments); filled by :func:`_methods`."""
 
 
+def _default_rule(indicator: str) -> dict[str, Any]:
+    """The default rule's settings (the ``enabled`` flag is storage's, not the rule's)."""
+    from detection.default_rules import DEFAULT_RULES
+
+    return {k: v for k, v in DEFAULT_RULES[indicator].items() if k != "enabled"}
+
+
 def _methods() -> dict[str, tuple[str, bool, dict[str, Any]]]:
     from detection.default_rules import DEFAULT_RULES
 
-    def classic(indicator: str) -> dict[str, Any]:
-        """The default rule's settings (the ``enabled`` flag is storage's, not the rule's)."""
-        return {k: v for k, v in DEFAULT_RULES[indicator].items() if k != "enabled"}
-
+    classic = _default_rule
     return {
         "tooth change (new)": ("change", True, dict(DEFAULT_RULES["change"])),
         "per-tooth score": ("score", True, dict(DEFAULT_RULES["score"])),
@@ -1080,14 +1084,11 @@ def evaluate(result: dict[str, Any], indicator: str, per_tooth: bool, settings: 
     from gearwatch.floor.results import STORED_TOOTH_INDICATORS
 
     if indicator == BOTH_PER_TOOTH:
-        def rule(name: str) -> dict[str, Any]:
-            return {k: v for k, v in DEFAULT_RULES[name].items() if k != "enabled"}
-
-        change = evaluate(result, "change", True, rule("change"))
+        change = evaluate(result, "change", True, _default_rule("change"))
         others = [opening for name in PER_TOOTH_RULES[1:]
                   if DEFAULT_RULES[name].get("enabled", True) is not False
                   and all(name in day["teeth"] for day in result["days"] if "teeth" in day)
-                  for opening in evaluate(result, name, True, rule(name))]
+                  for opening in evaluate(result, name, True, _default_rule(name))]
         merged: dict[tuple[int, int], tuple[int, int, str, float]] = {}
         for opening in [(d, t, e, v + _NAMING_PRIORITY) for d, t, e, v in change] + others:
             key = opening[:2]  # one opening per tooth-day, whichever rule opened it

@@ -231,9 +231,9 @@ def _raw_metrics(span_sums: np.ndarray, span_samples: np.ndarray) -> dict[str, f
     still alarms on record 7). Held out (seeds 9872–9911, generated after the choice, the default
     raw-kurtosis rule on 7 days): healthy campaigns alarmed 1 of 13 → 0, spalled campaigns
     alarmed 2 → 3 of 27 (one a day earlier, one new), none later. On the detection benchmark's
-    records, whose speed drifts by ≤ 4 % within a record, a wash (``held-out-8`` and ``-9``:
-    healthy campaigns alarmed 6 → 7 of 200 on the project simulator, 8 → 4 of 200 on the
-    independent one; ``benchmarks/bench_detection.py``).
+    30-revolution records (drift ≤ 4 % on the project simulator, 0–20 % on the independent
+    one), a wash (``held-out-8`` and ``-9``: healthy campaigns alarmed 6 → 7 of 200 on the
+    project simulator, 8 → 4 of 200 on the independent one; ``benchmarks/bench_detection.py``).
     """
     variance, _ = _central_moments(span_sums.sum(axis=0), float(span_samples.sum()))
     kurtoses, weights = [], []
