@@ -20,8 +20,9 @@ tooth's sector stood 4.1 robust standard deviations above the record's other tee
 (healthy days: −1.0 … −0.4), the largest tooth every day after onset.
 
 :func:`per_tooth_nonsync_z` is the indicator gearwatch stores (``nonsync_z``): the robust z of the
-log sector power over the teeth of the same record (the same statistic as the ``change``
-indicator's, :func:`dsp.toothchange.change_scores`), in the sector the ``change`` uses — from the
+log sector power over the teeth of the same record (the statistic the ``change`` indicator used
+until 2026-11-29, :func:`dsp.toothchange.log_energy_scores`; its rule was chosen on it), in the
+sector the ``change`` uses — from the
 pitch angle to one pitch after it (:data:`dsp.toothchange.DEFAULT_LAG_PITCH`).
 
 Where it names the tooth: the average keeps a ring's first, still coherent cycles, so the power
@@ -40,7 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from dsp.teeth import tooth_sector_masks
-from dsp.toothchange import DEFAULT_LAG_PITCH, change_scores
+from dsp.toothchange import DEFAULT_LAG_PITCH, log_energy_scores
 from dsp.toothframe import circular_shift
 
 __all__ = ["per_tooth_nonsync_power", "per_tooth_nonsync_z"]
@@ -133,4 +134,4 @@ def per_tooth_nonsync_z(
     if frame_delay_samples:
         power = circular_shift(power, frame_delay_samples)
     energy = per_tooth_nonsync_power(power, teeth, tooth1_pitch_angle_deg, lag_pitch=lag_pitch)
-    return np.asarray(change_scores(energy), dtype=np.float64)
+    return np.asarray(log_energy_scores(energy), dtype=np.float64)

@@ -45,24 +45,56 @@ Method
    from 24 to 25 (project generator, warning 5 vs 4.5 without it) and from 6 to 8 (independent),
    with no healthy campaign alarmed in either; without it, the first held-out part had 7 healthy
    campaigns of 50 with a warning at 4.5, several on teeth whose signatures moved with load.
-5. **Score** (:func:`change_scores`): the robust z of the log energy over the teeth of the same
-   record, ``(ln E_k − median ln E)/(1.4826·MAD ln E)``. Under noise alone each sector energy is
-   a scaled χ² with about ``samples_per_mesh`` degrees of freedom, whose log is close to
-   Gaussian; the record's own spread over its teeth is the noise unit, so no noise model is
-   assumed, and a change that moves all teeth together (a noisier day, a drift of the path)
-   moves the median, not the score.
+5. **Score** (:func:`change_scores`): the robust z of the *cube root* of the energy over the
+   teeth of the same record, ``(E_k^⅓ − median E^⅓) / (s · median E^⅓)``, with ``s`` the relative
+   spread ``1.4826·MAD(E^⅓) / median(E^⅓)`` of this record, or the one pooled over its reference
+   when that is larger (:func:`pooled_relative_spread`). Under noise alone each sector energy is
+   a scaled χ² with ``M`` degrees of freedom, twice the orders the weighted change holds per
+   pitch: ~60 when the sampling rate is 30 times the mesh frequency, ~10 when it is 5 times (a
+   fast rig sampled at 20 kHz). The record's own spread over its teeth is the noise unit, so no
+   noise model is assumed, and a change that moves all teeth together (a noisier day, a drift of
+   the path) moves the median, not the score. **Why the cube root**: it makes a χ² close to
+   normal for any ``M`` (Wilson & Hilferty 1931); the log, used until 2026-11-29, does so only
+   for large ``M`` — its upper tail is compressed, and a warning at 5 asked a
+   10-degree-of-freedom sector for 9 times its typical energy where 5 times has the same
+   false-alarm rate under noise (``tests/dsp/test_toothchange.py``: the share of pure-noise
+   scores above 3 is the normal one for 10 and 60 degrees of freedom, the log's a third of it
+   at 10). **Why pooled**: under noise the relative spread depends on ``M`` alone (the rig, the
+   sampling, the analysis), not on the day's noise level, but 13 teeth give it with about 5
+   degrees of freedom (the MAD's efficiency is 37 %): too few for a z of 5 to mean what it
+   says. The reference records give it again, each scored against the others (leave-one-out);
+   the median over those and this record is the pooled spread. It is used only when larger than
+   the record's own: a day whose operating change moved many teeth' waveforms has a larger
+   spread of its own, and that is the honest unit then. A record's scores stay a function of
+   its reference and itself.
+
+   Chosen on ``benchmarks/bench_detection.py``'s ``tune`` + ``tune-2`` parts (the ``change``
+   rule alone, offline on the stored averages; 80 spalled + 80 healthy campaigns per generator),
+   log → this: independent generator onset day 13 → 16, by the day after 22 → 30 of 80, right
+   tooth among detections 38 of 49 → 46 of 56, healthy campaigns alarmed 0 → 0 of 80; project
+   generator onset day 75 → 79, by the day after 79 → 80 of 80, healthy 0 → 0 of 80. The
+   record's own spread alone: 31 of 80 by the day after, but 2 healthy independent campaigns
+   alarmed (one a 13-tooth rig, two days at 5.3 and 5.1 on different teeth); the pooled spread
+   alone: 3 of 50 healthy project campaigns (``tune-2``) alarmed through the CUSUM, on days
+   whose own spread was well above their reference's; the log with the loudness discount of
+   step 6 as revised with this: 23 of 80, 1 healthy campaign alarmed.
 6. **Loud teeth change more** (``signature_energy``): a tooth with a strong manufacturing
    signature (an index error, a profile error) changes more with the day's load and speed than
    a quiet one, beyond the first-order part the projection removes. Each record says how much:
-   ``β`` = the median, over the louder half of the teeth, of ``(E_k − median E)/S_k`` (``S_k``
-   the reference signature's energy in the sector; a median over half the teeth, so one spalled
-   tooth cannot set it), and ``E_k`` is compared with ``median E + β·S_k``, what that tooth
-   would show from the day's operating change alone. A quiet tooth is unaffected; a new
-   transient on a loud tooth must exceed what its loudness explains. Chosen on ``tune-2``
-   (seeds 60–159, 50 healthy campaigns per generator, ``benchmarks/bench_detection.py``): the
-   healthy campaigns with a change alarm fell from 2 to 0 (project generator) and 1 to 0
-   (independent); onset-day detections 42 → 41 of 50 and 4 → 5 of 50. On ``tune`` (seeds
-   0–59, 30 healthy each) it went 0 → 0 and 0 → 1 healthy campaigns alarmed.
+   ``β`` = the median, over the louder half of the teeth, of ``(E_k − E₀)/S_k`` (``S_k``
+   the reference signature's energy in the sector, ``E₀`` the median energy of the quieter half;
+   a median over half the teeth, so one spalled tooth cannot set it), and ``E_k`` is compared
+   with ``E₀ + β·S_k``, what that tooth would show from the day's operating change alone. A
+   quiet tooth is unaffected; a new transient on a loud tooth must exceed what its loudness
+   explains. Chosen on ``tune-2`` (seeds 60–159, 50 healthy campaigns per generator,
+   ``benchmarks/bench_detection.py``): the healthy campaigns with a change alarm fell from 2 to
+   0 (project generator) and 1 to 0 (independent); onset-day detections 42 → 41 of 50 and 4 → 5
+   of 50. On ``tune`` (seeds 0–59, 30 healthy each) it went 0 → 0 and 0 → 1 healthy campaigns
+   alarmed. ``E₀`` was the median of *all* teeth until 2026-11-29: the loud half's own excess
+   raised it and ``β`` came out too small, which the cube-root score (step 5) showed — in the
+   known-answer test of 60 teeth whose change is ``0.3·S_k`` the loudest tooth scored 5.4
+   against its loudness (2.2 now); on ``tune`` + ``tune-2`` one more onset-day detection (17 →
+   18 of 80, independent), no healthy campaign alarmed on either generator.
 
 The reference needs :data:`DEFAULT_MIN_REFERENCE_RECORDS` = 3 records (the fourth record is the
 first scored): with 2, a reference sector that happened to be noisy showed as change on every
@@ -107,7 +139,7 @@ Edge cases
 * Averages of different lengths in one campaign (a change of ``samples_per_mesh``): the
   reference holds only records of this record's length.
 * A spread of zero over the teeth (a noise-free simulation): the spread floor
-  :data:`_MIN_LOG_SPREAD` keeps the score finite.
+  :data:`_MIN_RELATIVE_SPREAD` keeps the score finite.
 """
 
 from __future__ import annotations
@@ -164,8 +196,12 @@ orders beyond the sensor's or the anti-alias filter's band hold next to nothing,
 next to nothing would let round-off and interpolation residue there outweigh the band the gear
 is heard in."""
 
+_MIN_RELATIVE_SPREAD = 1e-3
+"""Smallest relative spread of ``E^⅓`` over the teeth used as the score's unit (about 3e-3 of
+``ln E``)."""
+
 _MIN_LOG_SPREAD = 1e-3
-"""Smallest spread of ``ln E`` over the teeth (nepers) used as the score's unit."""
+"""Smallest spread of ``ln E`` over the teeth (nepers) used as :func:`log_energy_scores`' unit."""
 
 
 def gain_free_spectrum(average: ArrayLike, pinion_teeth: int) -> NDArray[np.complex128]:
@@ -350,9 +386,12 @@ def tooth_change_energy(
 
 
 def change_scores(
-    energy: ArrayLike, signature_energy: ArrayLike | None = None
+    energy: ArrayLike,
+    signature_energy: ArrayLike | None = None,
+    *,
+    relative_spread: float | None = None,
 ) -> NDArray[np.float64]:
-    """Robust z of ``ln E`` over the teeth of one record (module docstring, steps 5 and 6).
+    """Robust z of ``E^⅓`` over the teeth of one record (module docstring, steps 5 and 6).
 
     Parameters
     ----------
@@ -362,47 +401,137 @@ def change_scores(
         Per-tooth energy of the reference's own tooth-specific content in the same sectors.
         Given, each tooth's energy is first divided by what its loudness explains,
         ``(median E + β·S_k)/median E`` (step 6).
+    relative_spread : float, optional
+        The unit: by default the record's own relative spread of ``E^⅓``
+        (:func:`relative_spread_of`); :func:`campaign_change_state` passes the larger of that and
+        the one pooled over the reference (:func:`pooled_relative_spread`).
 
     Examples
     --------
     >>> change_scores([1.0, 1.1, 0.9, 1.0, 1.05, 0.95, 8.0]).round(1)
-    array([ 0. ,  1.3, -1.4,  0. ,  0.6, -0.7, 27.3])
+    array([ 0. ,  1.3, -1.4,  0. ,  0.7, -0.7, 39.8])
 
-    Every tooth changed in proportion to its loudness (``E ≈ 1 + 0.2·S``): the loud tooth 7
-    (signature 40) stands out much less; the same change on a quiet tooth stands out more:
+    Every tooth changed roughly in proportion to its loudness (``E ≈ 1 + 0.3·S``): the loud
+    tooth 7 (signature 40) does not stand out against it; the same change on a quiet tooth does:
 
-    >>> energy = [1.0, 1.2, 1.8, 1.05, 1.4, 0.95, 9.0, 1.02]
+    >>> energy = [1.0, 1.3, 1.6, 1.1, 1.5, 0.9, 9.0, 1.05]
     >>> loudness = [0.1, 1.0, 4.0, 0.2, 2.0, 0.1, 40.0, 0.1]
     >>> round(float(change_scores(energy)[6]), 1), round(float(change_scores(energy, loudness)[6]), 1)
-    (9.9, 3.7)
+    (9.5, -0.7)
     >>> loudness[6] = 0.1
     >>> round(float(change_scores(energy, loudness)[6]), 1)
-    16.6
+    60.0
+
+    A pooled unit twice the record's own halves the scores:
+
+    >>> own = relative_spread_of([1.0, 1.1, 0.9, 1.0, 1.05, 0.95, 8.0])
+    >>> float(change_scores([1.0, 1.1, 0.9, 1.0, 1.05, 0.95, 8.0], relative_spread=2 * own)[6].round(1))
+    19.9
     """
-    values = np.asarray(energy, dtype=np.float64)
-    if values.ndim != 1 or values.size < 3:
-        raise ValueError(f"energy must be 1-D with at least three teeth, got {values.shape}")
-    logs = np.log(np.fmax(values, np.finfo(np.float64).tiny))
-    if signature_energy is not None:
-        logs = logs - np.log(_loudness_factor(values, np.asarray(signature_energy, np.float64)))
+    values = _adjusted_energy(energy, signature_energy)
+    roots = np.cbrt(values)
+    centre = float(np.median(roots))
+    spread = relative_spread_of(values) if relative_spread is None else float(relative_spread)
+    scores: NDArray[np.float64] = (roots - centre) / (max(spread, _MIN_RELATIVE_SPREAD) * centre)
+    return scores
+
+
+def relative_spread_of(energy: ArrayLike, signature_energy: ArrayLike | None = None) -> float:
+    """``1.4826·MAD(E^⅓) / median(E^⅓)`` over the teeth of one record (after the loudness
+    discount when ``signature_energy`` is given): the unit of :func:`change_scores`.
+
+    Under noise alone it depends on the sector's degrees of freedom ``M`` only, about
+    ``√(2/(9M)) / (1 − 2/(9M))`` (Wilson–Hilferty):
+
+    >>> x = np.random.default_rng(0).chisquare(10, 20000)              # M = 10, any scale
+    >>> round(relative_spread_of(x), 2), round(relative_spread_of(3 * x), 2), round(float(np.sqrt(2 / 90) / (1 - 2 / 90)), 2)
+    (0.15, 0.15, 0.15)
+    """
+    roots = np.cbrt(_adjusted_energy(energy, signature_energy))
+    centre = float(np.median(roots))
+    return MAD_TO_SIGMA * float(np.median(np.abs(roots - centre))) / centre
+
+
+def pooled_relative_spread(spreads: Sequence[float]) -> float:
+    """The median of a record's own relative spread and its reference records' (each scored
+    against the others), :func:`relative_spread_of`; the unit of the record's scores is the
+    larger of this and its own (module docstring, step 5).
+
+    >>> pooled_relative_spread([0.30, 0.12, 0.14, 0.13])
+    0.135
+    """
+    if not spreads:
+        raise ValueError("need at least one relative spread")
+    return float(np.median(np.asarray(spreads, dtype=np.float64)))
+
+
+def log_energy_scores(energy: ArrayLike) -> NDArray[np.float64]:
+    """Robust z of ``ln E`` over the teeth, ``(ln E_k − median ln E)/(1.4826·MAD ln E)``: the
+    ``change`` score until 2026-11-29, kept for :mod:`dsp.nonsync` (whose rule was chosen on it).
+
+    >>> log_energy_scores([1.0, 1.1, 0.9, 1.0, 1.05, 0.95, 8.0]).round(1)
+    array([ 0. ,  1.3, -1.4,  0. ,  0.6, -0.7, 27.3])
+    """
+    logs = np.log(_adjusted_energy(energy, None))
     centre = float(np.median(logs))
     spread = max(MAD_TO_SIGMA * float(np.median(np.abs(logs - centre))), _MIN_LOG_SPREAD)
     scores: NDArray[np.float64] = (logs - centre) / spread
     return scores
 
 
+def _adjusted_energy(energy: ArrayLike, signature_energy: ArrayLike | None) -> NDArray[np.float64]:
+    """The energies, checked, floored above zero, and divided by what their tooth's loudness
+    explains when ``signature_energy`` is given (step 6)."""
+    values = np.asarray(energy, dtype=np.float64)
+    if values.ndim != 1 or values.size < 3:
+        raise ValueError(f"energy must be 1-D with at least three teeth, got {values.shape}")
+    values = np.fmax(values, np.finfo(np.float64).tiny)
+    if signature_energy is not None:
+        values = values / _loudness_factor(values, np.asarray(signature_energy, np.float64))
+    return values
+
+
 def _loudness_factor(energy: NDArray[np.float64], signature: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``(median E + β·S_k) / median E`` per tooth (module docstring, step 6); ones when no tooth
-    has a signature."""
+    """``(E₀ + β·S_k) / E₀`` per tooth (module docstring, step 6); ones when no tooth has a
+    signature. ``E₀`` is the median energy of the quieter half of the teeth, ``β`` the median of
+    ``(E_k − E₀)/S_k`` over the louder half."""
     if signature.shape != energy.shape:
         raise ValueError(f"signature_energy must have the shape of energy {energy.shape}")
-    typical = float(np.median(energy))
     loud = (signature >= np.median(signature)) & (signature > 0)
-    if typical <= 0 or not loud.any():
+    if not loud.any():
         return np.ones_like(energy)
-    beta = max(0.0, float(np.median((energy[loud] - typical) / signature[loud])))
-    factor: NDArray[np.float64] = (typical + beta * np.fmax(signature, 0.0)) / typical
+    # the level of a tooth whose loudness explains little: with the median of all teeth
+    # instead, the loud half's own excess entered it and β came out too small
+    base = float(np.median(energy[~loud])) if (~loud).any() else float(np.median(energy))
+    if base <= 0:
+        return np.ones_like(energy)
+    beta = max(0.0, float(np.median((energy[loud] - base) / signature[loud])))
+    factor: NDArray[np.float64] = (base + beta * np.fmax(signature, 0.0)) / base
     return factor
+
+
+def _sector_energies(
+    spectrum: NDArray[np.complex128],
+    reference_spectra: NDArray[np.complex128],
+    weights: NDArray[np.float64],
+    pinion_teeth: int,
+    samples_per_rev: int,
+    tooth1_pitch_angle_deg: float,
+    lag_pitch: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """One record's per-tooth change energy against the mean of ``reference_spectra`` (steps
+    3–4, floored at :data:`RESOLUTION_ENERGY_FRACTION`) and the reference signature's energy in
+    the same sectors (step 6)."""
+    reference = reference_spectra.mean(axis=0) * weights
+    change = change_signal(spectrum * weights, reference, pinion_teeth, samples_per_rev)
+    signature = change_signal(  # the reference's own tooth-specific content
+        reference, np.zeros_like(reference), pinion_teeth, samples_per_rev)
+    energy = tooth_change_energy(
+        change, pinion_teeth, tooth1_pitch_angle_deg, lag_pitch=lag_pitch, signature=signature)
+    loudness = tooth_change_energy(signature, pinion_teeth, tooth1_pitch_angle_deg, lag_pitch=lag_pitch)
+    reference_wave = np.fft.irfft(reference, samples_per_rev)
+    floor = RESOLUTION_ENERGY_FRACTION * float(np.sum(reference_wave**2)) / pinion_teeth
+    return np.fmax(energy, floor), loudness
 
 
 def _usable_spectrum(average: ArrayLike, pinion_teeth: int) -> NDArray[np.complex128] | None:
@@ -511,19 +640,17 @@ def campaign_change_state(
         if len(earlier) >= min_reference_records:
             reference_spectra = np.array([s for i in earlier if (s := spectra[i]) is not None])
             weights = order_weights(reference_spectra, pinion_teeth)
-            reference = reference_spectra.mean(axis=0) * weights
-            change = change_signal(spectrum * weights, reference, pinion_teeth, lengths[index])
-            signature = change_signal(  # the reference's own tooth-specific content
-                reference, np.zeros_like(reference), pinion_teeth, lengths[index])
-            energy = tooth_change_energy(
-                change, pinion_teeth, tooth1_pitch_angles_deg[index], lag_pitch=lag_pitch,
-                signature=signature,
-            )
-            loudness = tooth_change_energy(
-                signature, pinion_teeth, tooth1_pitch_angles_deg[index], lag_pitch=lag_pitch)
-            reference_wave = np.fft.irfft(reference, lengths[index])
-            floor = RESOLUTION_ENERGY_FRACTION * float(np.sum(reference_wave**2)) / pinion_teeth
-            scores = change_scores(np.fmax(energy, floor), loudness)
+            energy, loudness = _sector_energies(
+                spectrum, reference_spectra, weights, pinion_teeth, lengths[index],
+                tooth1_pitch_angles_deg[index], lag_pitch)
+            spreads = [relative_spread_of(energy, loudness)]
+            for position, i in enumerate(earlier if len(earlier) > 1 else []):
+                spreads.append(  # each reference record scored against the others
+                    relative_spread_of(*_sector_energies(
+                    reference_spectra[position], np.delete(reference_spectra, position, axis=0),
+                    weights, pinion_teeth, lengths[index], tooth1_pitch_angles_deg[i], lag_pitch)))
+            unit = max(spreads[0], pooled_relative_spread(spreads))  # step 5: never below its own
+            scores = change_scores(energy, loudness, relative_spread=unit)
         if len(earlier) < reference_records and (
             scores is None or float(np.max(scores)) <= REFERENCE_ADMIT_SCORE
         ):

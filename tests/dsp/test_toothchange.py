@@ -13,7 +13,9 @@ from dsp.toothchange import (
     campaign_change_scores,
     change_scores,
     gain_free_spectrum,
+    log_energy_scores,
     order_weights,
+    relative_spread_of,
     tooth_change_energy,
 )
 
@@ -108,14 +110,30 @@ def test_pure_noise_crosses_the_warning_level_in_under_one_percent_of_records() 
     the record's own noise as the only difference from its reference (80 and 20 teeth)."""
     crossings = records = 0
     for seed in range(150):
-        for teeth in (20, 80):
+        for teeth in (13, 20, 80):
             days = campaign(teeth, 5, noise=0.05, seed=seed)
             for scores in campaign_change_scores(days, [0.0] * 5, teeth)[3:]:
                 assert scores is not None
                 records += 1
                 crossings += float(np.max(scores)) > WARNING
-    assert records == 600
+    assert records == 900
     assert crossings / records < 0.01
+
+
+@pytest.mark.parametrize("dof", [10, 60])
+def test_the_score_has_the_normal_tail_whatever_the_sectors_degrees_of_freedom(dof: int) -> None:
+    """Pure-noise sector energies (scaled χ² with ``dof`` degrees of freedom, 80 teeth, 5000
+    records), scored with a pooled unit: the share of tooth scores above 3 is the normal
+    distribution's (1.35e-3), for a fast rig's 10 degrees of freedom as for 60. The log score
+    used before is three times too shy at 10 (a warning level meant one thing per rig)."""
+    rng = np.random.default_rng(dof)
+    energies = 7.0 * rng.chisquare(dof, (5000, 80))
+    unit = float(np.median([relative_spread_of(e) for e in energies[:50]]))
+    above = np.mean([change_scores(e, relative_spread=unit) > 3.0 for e in energies])
+    assert 0.7 < above / 1.35e-3 < 2.0  # measured 1.5 (10), 1.1 (60)
+    log_above = np.mean([log_energy_scores(e) > 3.0 for e in energies])
+    if dof == 10:
+        assert log_above / 1.35e-3 < 0.5  # measured 0.3
 
 
 def test_edge_cases() -> None:
@@ -205,7 +223,7 @@ def test_weighting_the_orders_finds_a_spall_that_coloured_noise_hides(
     monkeypatch.setattr(toothchange, "order_weights",
                         lambda spectra, _teeth: np.ones(np.asarray(spectra).shape[1]))
     flat = float(np.median(onset_day_scores()))
-    assert weighted > WARNING > 2.0 > flat  # measured: 7.2 / 1.65 (20 teeth), 8.1 / 1.67 (47)
+    assert weighted > WARNING > 3.0 > flat  # measured: 9.8 / 2.4 (20 teeth), 9.9 / 1.7 (47)
 
 
 def test_coloured_noise_alone_crosses_the_warning_level_in_under_one_percent_of_records() -> None:
