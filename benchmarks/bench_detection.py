@@ -52,8 +52,8 @@ alarms in nearly every healthy campaign: its first alarms are not detections).
 
 Measured 2026-11-29 (third session): **the ``change`` score in the cube root of the energy**
 (:mod:`dsp.toothchange`, step 5: a χ² is close to normal in its cube root for any degrees of
-freedom, in its log only for many — a fast rig sampled at 5× its mesh frequency has ~10 per
-sector, and a warning at 5 asked it for nearly twice the energy of a slow rig's), its unit pooled
+freedom, in its log only for many — a fast rig sampled at 10× its mesh frequency has ~10 per
+sector, and a warning at 5 asked it for nearly twice the energy its noise calls for), its unit pooled
 with the reference records' when the record's own is smaller, and the loudness discount (step 6)
 measured from the quieter half of the teeth. Chosen offline on ``tune`` + ``tune-2`` (numbers in
 the module docstring). Then run once on a part generated after that choice, ``held-out-11``

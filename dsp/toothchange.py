@@ -49,15 +49,16 @@ Method
    teeth of the same record, ``(E_k^⅓ − median E^⅓) / (s · median E^⅓)``, with ``s`` the relative
    spread ``1.4826·MAD(E^⅓) / median(E^⅓)`` of this record, or the one pooled over its reference
    when that is larger (:func:`pooled_relative_spread`). Under noise alone each sector energy is
-   a scaled χ² with ``M`` degrees of freedom, twice the orders the weighted change holds per
-   pitch: ~60 when the sampling rate is 30 times the mesh frequency, ~10 when it is 5 times (a
-   fast rig sampled at 20 kHz). The record's own spread over its teeth is the noise unit, so no
+   a scaled χ² with ``M`` degrees of freedom, about the sampling rate over the mesh frequency
+   (the band's orders per pitch, twice): ~60 on a slow rig, ~10 on a fast one whose mesh
+   frequency is 2 kHz at a 20 kHz sampling rate. The record's own spread over its teeth is the noise unit, so no
    noise model is assumed, and a change that moves all teeth together (a noisier day, a drift of
    the path) moves the median, not the score. **Why the cube root**: it makes a χ² close to
    normal for any ``M`` (Wilson & Hilferty 1931); the log, used until 2026-11-29, does so only
    for large ``M`` — its upper tail is compressed, and a warning at 5 asked a
-   10-degree-of-freedom sector for 9 times its typical energy where 5 times has the same
-   false-alarm rate under noise (``tests/dsp/test_toothchange.py``: the share of pure-noise
+   10-degree-of-freedom sector for 9.9 times its median energy where 5.3 times has the normal
+   false-alarm rate of a 5 under noise (the cube root asks 5.5; at 60 degrees of freedom the
+   three are 2.5, 2.2 and 2.2) (``tests/dsp/test_toothchange.py``: the share of pure-noise
    scores above 3 is the normal one for 10 and 60 degrees of freedom, the log's a third of it
    at 10). **Why pooled**: under noise the relative spread depends on ``M`` alone (the rig, the
    sampling, the analysis), not on the day's noise level, but 13 teeth give it with about 5
@@ -400,7 +401,7 @@ def change_scores(
     signature_energy : array_like of float, shape (Z1,), optional
         Per-tooth energy of the reference's own tooth-specific content in the same sectors.
         Given, each tooth's energy is first divided by what its loudness explains,
-        ``(median E + β·S_k)/median E`` (step 6).
+        ``(E₀ + β·S_k)/E₀`` (step 6).
     relative_spread : float, optional
         The unit: by default the record's own relative spread of ``E^⅓``
         (:func:`relative_spread_of`); :func:`campaign_change_state` passes the larger of that and
@@ -644,11 +645,12 @@ def campaign_change_state(
                 spectrum, reference_spectra, weights, pinion_teeth, lengths[index],
                 tooth1_pitch_angles_deg[index], lag_pitch)
             spreads = [relative_spread_of(energy, loudness)]
-            for position, i in enumerate(earlier if len(earlier) > 1 else []):
-                spreads.append(  # each reference record scored against the others
-                    relative_spread_of(*_sector_energies(
-                    reference_spectra[position], np.delete(reference_spectra, position, axis=0),
-                    weights, pinion_teeth, lengths[index], tooth1_pitch_angles_deg[i], lag_pitch)))
+            if len(earlier) > 1:  # each reference record scored against the others
+                for position, i in enumerate(earlier):
+                    others = np.delete(reference_spectra, position, axis=0)
+                    spreads.append(relative_spread_of(*_sector_energies(
+                        reference_spectra[position], others, weights, pinion_teeth,
+                        lengths[index], tooth1_pitch_angles_deg[i], lag_pitch)))
             unit = max(spreads[0], pooled_relative_spread(spreads))  # step 5: never below its own
             scores = change_scores(energy, loudness, relative_spread=unit)
         if len(earlier) < reference_records and (
