@@ -632,6 +632,7 @@ def campaign_change_state(
                for average in averages]
     out: list[NDArray[np.float64] | None] = []
     admitted: list[int] = []  # indices of the records in the reference, in taken_at order
+    reference_spreads: dict[tuple[int, ...], list[float]] = {}  # leave-one-out, per reference
     for index, spectrum in enumerate(spectra):
         if spectrum is None:
             out.append(None)
@@ -644,13 +645,15 @@ def campaign_change_state(
             energy, loudness = _sector_energies(
                 spectrum, reference_spectra, weights, pinion_teeth, lengths[index],
                 tooth1_pitch_angles_deg[index], lag_pitch)
-            spreads = [relative_spread_of(energy, loudness)]
-            if len(earlier) > 1:  # each reference record scored against the others
-                for position, i in enumerate(earlier):
-                    others = np.delete(reference_spectra, position, axis=0)
-                    spreads.append(relative_spread_of(*_sector_energies(
-                        reference_spectra[position], others, weights, pinion_teeth,
-                        lengths[index], tooth1_pitch_angles_deg[i], lag_pitch)))
+            key = tuple(earlier)  # the same reference for every later record, once complete
+            if key not in reference_spreads:  # each reference record scored against the others
+                reference_spreads[key] = [
+                    relative_spread_of(*_sector_energies(
+                        reference_spectra[position], np.delete(reference_spectra, position, axis=0),
+                        weights, pinion_teeth, lengths[index], tooth1_pitch_angles_deg[i], lag_pitch))
+                    for position, i in enumerate(earlier if len(earlier) > 1 else [])
+                ]
+            spreads = [relative_spread_of(energy, loudness), *reference_spreads[key]]
             unit = max(spreads[0], pooled_relative_spread(spreads))  # step 5: never below its own
             scores = change_scores(energy, loudness, relative_spread=unit)
         if len(earlier) < reference_records and (

@@ -9,7 +9,9 @@ writes only what differs: in order, only the new record's values are written; a 
 arrives late rewrites those of the records after it. The record that arrives *last* in
 ``taken_at`` order (a live rig's every record) is scored from the campaign's first records alone
 once they hold a complete reference (:func:`dsp.toothchange.campaign_change_state`): its cost does
-not grow with the campaign (a rig recording every 10 minutes has thousands of records). The alarm evaluation that follows
+not grow with the campaign (a rig recording every 10 minutes has thousands of records). The same
+computation re-scores those first records; if their stored values differ (stored by a version of
+gearwatch whose statistic differed), the whole campaign is recomputed instead, once. The alarm evaluation that follows
 (:func:`gearwatch.usecases.alarms.evaluate_record`) replays the tracks of a late record, so the
 ``change`` alarms are a function of the set of accepted records, whatever order they arrived in.
 
@@ -142,11 +144,41 @@ def _refresh_last(
                        if i < prefix and (a := averages[i]) is not None
                        and a.size == last_average.size) >= DEFAULT_REFERENCE_RECORDS
         if complete:
+            if not _agrees(session, pinion_teeth, channel_id, earlier[:prefix], scores[:-1]):
+                return None  # the earlier records hold another version's values: recompute all
             return _write(session, pinion_teeth, channel_id, rows[-1:], scores[-1:])
         if prefix == len(earlier):
             return None
         prefix = min(len(earlier), 2 * prefix)
     return None
+
+
+def _agrees(
+    session: Session,
+    pinion_teeth: int,
+    channel_id: int,
+    rows: list[tuple[ChannelResult, int, int, object]],
+    scores: list[np.ndarray | None],
+) -> bool:
+    """Whether the stored ``change`` values of ``rows`` are ``scores``. They are, unless a
+    version of gearwatch that computed the statistic otherwise stored them: the prefix's scores
+    come free with the last record's, and a record's scores depend only on the records before it."""
+    expected: dict[tuple[int, int], float] = {}
+    for (channel_result, *_), values in zip(rows, scores, strict=True):
+        for tooth in range(1, pinion_teeth + 1):
+            value = None if values is None else float(values[tooth - 1])
+            if value is not None and math.isfinite(value):
+                expected[(channel_result.result_id, tooth)] = value
+    stored = {
+        (result_id, tooth): value
+        for result_id, tooth, value in session.execute(
+            sa.select(ToothIndicator.result_id, ToothIndicator.tooth, ToothIndicator.value).where(
+                ToothIndicator.result_id.in_([row[0].result_id for row in rows]),
+                ToothIndicator.channel_id == channel_id, ToothIndicator.indicator == INDICATOR))
+    }
+    return stored.keys() == expected.keys() and all(
+        math.isclose(stored[key], value, rel_tol=RELATIVE_TOLERANCE, abs_tol=1e-12)
+        for key, value in expected.items())
 
 
 def _write(

@@ -35,9 +35,10 @@ TOOTH1_DEG = 9.0  # campaign_config's rig
 
 
 def _ingest(session: Session, tag: str, order: list[int], *, days: int = DAYS,
-            onset: int = ONSET) -> int:
+            onset: int = ONSET, new_rig: bool = True) -> int:
     campaign = CampaignRepository(session).ensure(campaign_config(f"camp-{tag}", f"rig-{tag}"))
-    AlarmRuleRepository(session).create(campaign.rig_id, "change", **CHANGE_RULE)
+    if new_rig:
+        AlarmRuleRepository(session).create(campaign.rig_id, "change", **CHANGE_RULE)
     session.commit()
     averages = simulated_days(TEETH, days, noise=0.02, seed=3, spall=(SPALL_TOOTH, onset, 0.12),
                               tooth1_deg=TOOTH1_DEG)
@@ -134,3 +135,38 @@ def test_a_record_arriving_last_is_scored_from_the_reference_alone_and_equals_a_
     for key, value in expected.items():
         assert got[key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
     assert {a.tooth for a in AlarmRepository(db_session).list(rig_id=sequential)} == {SPALL_TOOTH}
+
+
+def test_values_an_earlier_version_stored_are_recomputed_when_the_next_record_arrives(
+    db_session: Session, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After an upgrade that changed the statistic, the campaign's stored values are not left in
+    the old scale beside the new record's: the first records, re-scored with the new one, differ
+    from what is stored, and the whole campaign is recomputed once."""
+    from gearwatch.usecases import tooth_change
+
+    days, onset = 20, 16
+    rig_id = _ingest(db_session, "e", list(range(days - 1)), days=days, onset=onset)
+    before = _stored_changes(db_session, rig_id)
+    old_scale = {key: 0.5 * value for key, value in before.items()}  # another version's values
+    db_session.execute(sa.update(ToothIndicator).where(
+        ToothIndicator.rig_id == rig_id, ToothIndicator.indicator == "change"
+    ).values(value=ToothIndicator.value * 0.5))
+    db_session.commit()
+    assert _stored_changes(db_session, rig_id) == pytest.approx(old_scale)
+
+    full_recomputes = 0
+    real = tooth_change._refresh_channel
+
+    def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
+        nonlocal full_recomputes
+        full_recomputes += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(tooth_change, "_refresh_channel", counting)
+    _ingest(db_session, "e", [days - 1], days=days, onset=onset, new_rig=False)
+    assert full_recomputes == 1
+    after = _stored_changes(db_session, rig_id)
+    assert len(after) == len(before) + TEETH
+    for key, value in before.items():
+        assert after[key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
