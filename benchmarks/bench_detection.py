@@ -96,7 +96,14 @@ the filter shrunk towards identity, 8–10 of 30), the sector lag set per rig fr
 *true* path delay (an oracle: 8–11 of 30, no gain — the pure delay is not what misplaces the
 energy), a rule on a tooth that leads two days running at ≥ 2–3.5 (no earlier detection), and an
 Eckart weighting of the orders by the reference signature's spectrum (22 → 27 of 80 on ``tune`` +
-``tune-2``, fewer right teeth: 38 of 49 → 35 of 48; the cube root gave more).
+``tune-2``, fewer right teeth: 38 of 49 → 35 of 48; the cube root gave more; on top of the cube
+root, 2 healthy project campaigns alarmed). With the cube root, on ``tune`` + ``tune-2`` (30 of
+80 by the day after onset): sectors two pitches wide, 29 and the right tooth far less often; the
+central half or three quarters of each sector, 21 and 27; ``nonsync_z`` added to the score
+(weights 0.5 and 1), 30 and 26, with 4 healthy campaigns alarmed at 1. A per-tooth average of
+the residual locked in *time* to each tooth's mesh instant (to recover a ring that a drifting
+speed smears in angle), tried on 12 ``tune`` campaigns: the spalled tooth stood out only on the
+last day in 2 of 6, healthy records reached 3–20.
 
 Measured 2026-11-29 (later session): **a drifting speed within a record delays the per-tooth
 alarms**, and a witness for it. On 24 stress campaigns of ``physics.independent.random_campaign``
