@@ -60,6 +60,21 @@ def _ingest(session: Session, tag: str, order: list[int], *, days: int = DAYS,
     return campaign.rig_id
 
 
+def _count_full_recomputes(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Count the campaign-wide recomputations (``_refresh_channel``) from now on, in ``[0]``."""
+    from gearwatch.usecases import tooth_change
+
+    counter = [0]
+    real = tooth_change._refresh_channel
+
+    def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
+        counter[0] += 1
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(tooth_change, "_refresh_channel", counting)
+    return counter
+
+
 def _stored_changes(session: Session, rig_id: int) -> dict[tuple[dt.datetime, int], float]:
     rows = session.execute(
         sa.select(ToothIndicator.taken_at, ToothIndicator.tooth, ToothIndicator.value)
@@ -100,18 +115,8 @@ def test_a_record_arriving_last_is_scored_from_the_reference_alone_and_equals_a_
     """A live rig's records arrive in order: once the campaign's first records hold a complete
     reference (8 admitted), each new one is scored without recomputing the campaign — and the
     stored values are exactly those of a full recomputation, in order and shuffled."""
-    from gearwatch.usecases import tooth_change
-
     days, onset = 20, 16
-    full_recomputes = 0
-    real = tooth_change._refresh_channel
-
-    def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
-        nonlocal full_recomputes
-        full_recomputes += 1
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(tooth_change, "_refresh_channel", counting)
+    full_recomputes = _count_full_recomputes(monkeypatch)
     sequential = _ingest(db_session, "c", list(range(days)), days=days, onset=onset)
     # the records up to the 8th admitted one recompute (no complete reference before them; a
     # healthy record that scores above the admission level is not admitted), the later ones do not
@@ -120,11 +125,11 @@ def test_a_record_arriving_last_is_scored_from_the_reference_alone_and_equals_a_
     _, admitted = campaign_change_state([a.astype(np.float32) for a in averages],
                                         [TOOTH1_DEG] * days, TEETH)
     assert len(admitted) == DEFAULT_REFERENCE_RECORDS and admitted[-1] < onset - 1
-    assert full_recomputes == admitted[-1] + 1
+    assert full_recomputes[0] == admitted[-1] + 1
     campaign_id = db_session.execute(
         sa.select(Campaign.id).where(Campaign.rig_id == sequential)).scalar_one()
     written = refresh_tooth_change(db_session, campaign_id)
-    assert full_recomputes == admitted[-1] + 2, "the refresh without a record id recomputes the campaign"
+    assert full_recomputes[0] == admitted[-1] + 2, "the refresh without a record id recomputes the campaign"
     assert written == 0  # and changes nothing
 
     order = list(range(days))
@@ -143,8 +148,6 @@ def test_values_an_earlier_version_stored_are_recomputed_when_the_next_record_ar
     """After an upgrade that changed the statistic, the campaign's stored values are not left in
     the old scale beside the new record's: the first records, re-scored with the new one, differ
     from what is stored, and the whole campaign is recomputed once."""
-    from gearwatch.usecases import tooth_change
-
     days, onset = 20, 16
     rig_id = _ingest(db_session, "e", list(range(days - 1)), days=days, onset=onset)
     before = _stored_changes(db_session, rig_id)
@@ -155,17 +158,9 @@ def test_values_an_earlier_version_stored_are_recomputed_when_the_next_record_ar
     db_session.commit()
     assert _stored_changes(db_session, rig_id) == pytest.approx(old_scale)
 
-    full_recomputes = 0
-    real = tooth_change._refresh_channel
-
-    def counting(*args, **kwargs):  # type: ignore[no-untyped-def]
-        nonlocal full_recomputes
-        full_recomputes += 1
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(tooth_change, "_refresh_channel", counting)
+    full_recomputes = _count_full_recomputes(monkeypatch)
     _ingest(db_session, "e", [days - 1], days=days, onset=onset, new_rig=False)
-    assert full_recomputes == 1
+    assert full_recomputes[0] == 1
     after = _stored_changes(db_session, rig_id)
     assert len(after) == len(before) + TEETH
     for key, value in before.items():
