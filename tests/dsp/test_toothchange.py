@@ -107,7 +107,7 @@ def test_a_spall_in_the_reference_days_is_not_learned_as_normal() -> None:
 
 def test_pure_noise_crosses_the_warning_level_in_under_one_percent_of_records() -> None:
     """The false-alarm rate of one record's highest tooth at the rule's warning level, with
-    the record's own noise as the only difference from its reference (80 and 20 teeth)."""
+    the record's own noise as the only difference from its reference (13, 20 and 80 teeth)."""
     crossings = records = 0
     for seed in range(150):
         for teeth in (13, 20, 80):
