@@ -48,7 +48,7 @@ Method
 5. **Score** (:func:`change_scores`): the robust z of the *cube root* of the energy over the
    teeth of the same record, ``(E_k^⅓ − median E^⅓) / (s · median E^⅓)``, with ``s`` the relative
    spread ``1.4826·MAD(E^⅓) / median(E^⅓)`` of this record, or the one pooled over its reference
-   when that is larger (:func:`pooled_relative_spread`). Under noise alone each sector energy is
+   when that is larger (:func:`score_unit`). Under noise alone each sector energy is
    a scaled χ² with ``M`` degrees of freedom, about the sampling rate over the mesh frequency
    (the band's orders per pitch, twice): ~60 on a slow rig, ~10 on a fast one whose mesh
    frequency is 2 kHz at a 20 kHz sampling rate. The record's own spread over its teeth is the noise unit, so no
@@ -404,8 +404,7 @@ def change_scores(
         ``(E₀ + β·S_k)/E₀`` (step 6).
     relative_spread : float, optional
         The unit: by default the record's own relative spread of ``E^⅓``
-        (:func:`relative_spread_of`); :func:`campaign_change_state` passes the larger of that and
-        the one pooled over the reference (:func:`pooled_relative_spread`).
+        (:func:`relative_spread_of`); :func:`campaign_change_state` passes :func:`score_unit`.
 
     Examples
     --------
@@ -429,10 +428,9 @@ def change_scores(
     >>> float(change_scores([1.0, 1.1, 0.9, 1.0, 1.05, 0.95, 8.0], relative_spread=2 * own)[6].round(1))
     19.9
     """
-    values = _adjusted_energy(energy, signature_energy)
-    roots = np.cbrt(values)
+    roots = np.cbrt(_adjusted_energy(energy, signature_energy))
     centre = float(np.median(roots))
-    spread = relative_spread_of(values) if relative_spread is None else float(relative_spread)
+    spread = _relative_spread(roots, centre) if relative_spread is None else float(relative_spread)
     scores: NDArray[np.float64] = (roots - centre) / (max(spread, _MIN_RELATIVE_SPREAD) * centre)
     return scores
 
@@ -449,21 +447,22 @@ def relative_spread_of(energy: ArrayLike, signature_energy: ArrayLike | None = N
     (0.15, 0.15, 0.15)
     """
     roots = np.cbrt(_adjusted_energy(energy, signature_energy))
-    centre = float(np.median(roots))
+    return _relative_spread(roots, float(np.median(roots)))
+
+
+def _relative_spread(roots: NDArray[np.float64], centre: float) -> float:
     return MAD_TO_SIGMA * float(np.median(np.abs(roots - centre))) / centre
 
 
-def pooled_relative_spread(spreads: Sequence[float]) -> float:
-    """The median of a record's own relative spread and its reference records' (each scored
-    against the others), :func:`relative_spread_of`; the unit of the record's scores is the
-    larger of this and its own (module docstring, step 5).
+def score_unit(own: float, reference_spreads: Sequence[float]) -> float:
+    """The unit of a record's scores (module docstring, step 5): the median of its own relative
+    spread and its reference records' (each scored against the others,
+    :func:`relative_spread_of`), never below its own.
 
-    >>> pooled_relative_spread([0.30, 0.12, 0.14, 0.13])
-    0.135
+    >>> score_unit(0.12, [0.30, 0.14, 0.13]), score_unit(0.30, [0.12, 0.14, 0.13])
+    (0.135, 0.3)
     """
-    if not spreads:
-        raise ValueError("need at least one relative spread")
-    return float(np.median(np.asarray(spreads, dtype=np.float64)))
+    return max(float(own), float(np.median(np.asarray([own, *reference_spreads], dtype=np.float64))))
 
 
 def log_energy_scores(energy: ArrayLike) -> NDArray[np.float64]:
@@ -653,9 +652,9 @@ def campaign_change_state(
                         weights, pinion_teeth, lengths[index], tooth1_pitch_angles_deg[i], lag_pitch))
                     for position, i in enumerate(earlier if len(earlier) > 1 else [])
                 ]
-            spreads = [relative_spread_of(energy, loudness), *reference_spreads[key]]
-            unit = max(spreads[0], pooled_relative_spread(spreads))  # step 5: never below its own
-            scores = change_scores(energy, loudness, relative_spread=unit)
+            adjusted = _adjusted_energy(energy, loudness)
+            unit = score_unit(relative_spread_of(adjusted), reference_spreads[key])
+            scores = change_scores(adjusted, relative_spread=unit)
         if len(earlier) < reference_records and (
             scores is None or float(np.max(scores)) <= REFERENCE_ADMIT_SCORE
         ):

@@ -169,16 +169,20 @@ def _agrees(
             value = None if values is None else float(values[tooth - 1])
             if value is not None and math.isfinite(value):
                 expected[(channel_result.result_id, tooth)] = value
-    stored = {
-        (result_id, tooth): value
-        for result_id, tooth, value in session.execute(
-            sa.select(ToothIndicator.result_id, ToothIndicator.tooth, ToothIndicator.value).where(
-                ToothIndicator.result_id.in_([row[0].result_id for row in rows]),
-                ToothIndicator.channel_id == channel_id, ToothIndicator.indicator == INDICATOR))
-    }
+    stored = _stored(session, channel_id, [row[0].result_id for row in rows])
     return stored.keys() == expected.keys() and all(
-        math.isclose(stored[key], value, rel_tol=RELATIVE_TOLERANCE, abs_tol=1e-12)
+        math.isclose(stored[key].value, value, rel_tol=RELATIVE_TOLERANCE, abs_tol=1e-12)
         for key, value in expected.items())
+
+
+def _stored(session: Session, channel_id: int, result_ids: list[int]) -> dict[tuple[int, int], ToothIndicator]:
+    """The stored ``change`` rows of these results on this channel, by (result id, tooth)."""
+    return {
+        (item.result_id, item.tooth): item
+        for item in session.scalars(sa.select(ToothIndicator).where(
+            ToothIndicator.result_id.in_(result_ids), ToothIndicator.channel_id == channel_id,
+            ToothIndicator.indicator == INDICATOR))
+    }
 
 
 def _write(
@@ -189,13 +193,7 @@ def _write(
     scores: list[np.ndarray | None],
 ) -> int:
     """Store ``scores`` as the ``change`` rows of ``rows``, writing only what differs."""
-    result_ids = [row[0].result_id for row in rows]
-    stored: dict[tuple[int, int], ToothIndicator] = {
-        (item.result_id, item.tooth): item
-        for item in session.scalars(sa.select(ToothIndicator).where(
-            ToothIndicator.result_id.in_(result_ids), ToothIndicator.channel_id == channel_id,
-            ToothIndicator.indicator == INDICATOR))
-    }
+    stored = _stored(session, channel_id, [row[0].result_id for row in rows])
     written = 0
     inserts: list[dict[str, object]] = []
     for (channel_result, record_id, rig_id, taken_at), values in zip(rows, scores, strict=True):
