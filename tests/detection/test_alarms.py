@@ -389,6 +389,25 @@ def test_wind_turbine_raw_kurtosis_alarms_on_the_first_risen_record() -> None:
     assert states.index("alarm") == 6
 
 
+
+def test_fm4_rule_waits_out_two_ordinary_days_and_alarms_on_a_third() -> None:
+    """The default FM4 rule's CUSUM (k = 1.5, h = 5): two records about three spreads up — an
+    ordinary pair of operating days on the independent simulator — open nothing; a third does
+    (3 × 1.8 > 5). With the former h = 3.5 the second record opened an alarm on a healthy rig
+    (``detection/default_rules.py``)."""
+    from detection.default_rules import DEFAULT_RULES
+
+    settings = {k: v for k, v in DEFAULT_RULES["fm4"].items() if k != "enabled"}
+    fm4 = RuleSettings("fm4", **settings)
+    baseline = [3.0, 3.0, 3.0]  # spread = the 10 % floor = 0.3
+    up = 3.0 + 3.3 * 0.3  # 3.3 spreads: below the warning (4) and its persistence
+    states, _ = run([*baseline, up, up], fm4)
+    assert states[-1] is None
+    states, _ = run([*baseline, up, up, up], fm4)
+    assert states[-2] is None and states[-1] == "alarm"
+    former = RuleSettings("fm4", **{**settings, "cusum_limit": 3.5})
+    assert run([*baseline, up, up], former)[0][-1] == "alarm"
+
 def test_a_quiet_tooth_becoming_typical_is_not_an_alarm_standing_out_is() -> None:
     """``score`` is relative to the record's other teeth (0 = typical): its baseline centre is
     never below 0. The same values on an indicator without that rule would alarm."""
