@@ -15,7 +15,7 @@ complementary defences, both pure (arrays in, arrays out):
      99.9 % quantiles (:func:`glitch_limits`); with ``f = 5`` that is about 34 σ for Gaussian
      noise and 11 amplitudes for a sine;
    - *glitch* too: an isolated spike (:func:`find_spikes`), one sample at least
-     ``spike_factor`` quantile ranges (2: about 13 σ) from the median of its eight neighbours
+     ``spike_factor`` quantile ranges (1: about 6.5 σ) from the median of its eight neighbours
      on either side while they span less than 0.35 of that distance. A vibration signal that
      went through an anti-alias filter rings over several samples — an oscillation below
      0.45 fs comes back near its peak height within eight samples, and the narrowest pulse the
@@ -261,7 +261,7 @@ def spike_threshold(signal: ArrayLike, factor: float = SPIKE_FACTOR) -> float:
     --------
     >>> import numpy as np
     >>> spike_threshold(np.linspace(-1.0, 1.0, 1001))
-    3.992
+    1.996
     """
     if factor < 0:
         raise ValueError(f"factor must be ≥ 0, got {factor}")

@@ -35,15 +35,17 @@ def test_gaussian_noise_has_no_defects() -> None:
 
 
 def test_gaussian_noise_has_no_spike() -> None:
-    # 2 M samples of N(0, 1): the spike threshold is ~13 σ from the neighbours' median
+    # 2 M samples of N(0, 1): the spike threshold is ~6.5 σ from the neighbours' median
     x = noise(2_000_000, seed=1)
     threshold = spike_threshold(x)
-    assert 11 < threshold < 15
+    assert 5.5 < threshold < 7.5
     assert find_spikes(x, threshold).size == 0
 
 
-@pytest.mark.parametrize(("height", "found"), [(20.0, True), (14.0, True), (8.0, False)])
-def test_a_lone_sample_in_noise_is_a_spike_from_13_sigma(height: float, found: bool) -> None:
+@pytest.mark.parametrize(("height", "found"), [(20.0, True), (14.0, True), (10.0, True), (5.0, False)])
+def test_a_lone_sample_in_noise_is_a_spike_from_about_10_sigma(height: float, found: bool) -> None:
+    # the threshold is ~6.5 σ; the isolation test (16 neighbours spanning ~3 σ < 0.35 × the
+    # distance) asks for about 9 σ more in Gaussian noise
     x = noise(50_000, seed=2)
     x[[7_000, 31_000]] += np.array([height, -height]) - x[[7_000, 31_000]]
     spikes = find_spikes(x, spike_threshold(x))
