@@ -45,7 +45,7 @@ def test_gaussian_noise_has_no_spike() -> None:
 @pytest.mark.parametrize(("height", "found"), [(20.0, True), (14.0, True), (10.0, True), (5.0, False)])
 def test_a_lone_sample_in_noise_is_a_spike_from_about_10_sigma(height: float, found: bool) -> None:
     # the threshold is ~6.5 σ; the isolation test (16 neighbours spanning ~3 σ < 0.35 × the
-    # distance) asks for about 9 σ more in Gaussian noise
+    # distance) asks for about 9 σ in Gaussian noise
     x = noise(50_000, seed=2)
     x[[7_000, 31_000]] += np.array([height, -height]) - x[[7_000, 31_000]]
     spikes = find_spikes(x, spike_threshold(x))
