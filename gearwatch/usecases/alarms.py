@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+import math
 from collections import defaultdict
 from dataclasses import dataclass, field
 
@@ -22,6 +23,7 @@ from sqlalchemy.orm import Session
 from detection.alarms import (
     RECORD_RELATIVE_INDICATORS,
     RULE_SETTING_NAMES,
+    Evaluation,
     RuleSettings,
     TrackState,
     acknowledge,
@@ -173,10 +175,13 @@ def _advance(
     states = {key: TrackState.from_dict(track.state) for key, track in tracks.items()}
     pooled = _pooled_spreads(rule, states)
     changes: list[AlarmChange] = []
-    for channel_id, tooth, value in rule_values:
+    evaluations = [
+        (channel_id, tooth, value,
+         step(states.get((channel_id, tooth), TrackState()), value, settings, pooled.get(channel_id)))
+        for channel_id, tooth, value in rule_values
+    ]
+    for channel_id, tooth, value, evaluation in _strongest_first(evaluations):
         track = tracks.get((channel_id, tooth))
-        state = states.get((channel_id, tooth), TrackState())
-        evaluation = step(state, value, settings, pooled.get(channel_id))
         alarm = open_alarms.get((channel_id, tooth))
         for transition in evaluation.transitions:
             if transition.opened:
@@ -221,6 +226,24 @@ def _advance(
             rule.id, channel_id, tooth, evaluation.state.to_dict(), record.taken_at, track
         )
     return changes
+
+
+def _strongest_first(
+    evaluations: list[tuple[int, int, float, Evaluation]],
+) -> list[tuple[int, int, float, Evaluation]]:
+    """The tracks that open an alarm on this record, highest opening score first, then the rest
+    in their order.
+
+    A spall rings into the sectors after its tooth, so one record often opens a rule's alarm
+    on two or three neighbouring teeth at once; the spalled tooth is the one that stands
+    highest (``benchmarks/bench_detection.py`` scores the highest-scoring opening of the day).
+    Opened in this order, the record's first alarm (lowest id, first notification, first in
+    the alarm list among those raised by the record) is that tooth's.
+    """
+    def opening_score(item: tuple[int, int, float, Evaluation]) -> float:
+        return max((t.score for t in item[3].transitions if t.opened), default=-math.inf)
+
+    return sorted(evaluations, key=lambda item: -opening_score(item))
 
 
 def _pooled_spreads(
@@ -302,8 +325,10 @@ class _Episode:
     severity: str
     baseline_centre: float
     baseline_spread: float
-    events: list[tuple[str, _Point, float, float]] = field(default_factory=list)
-    """(kind, record, value, score) of every transition, the opening one first."""
+    evidence: str = "level"
+    """What opened it (:attr:`detection.alarms.Transition.evidence`)."""
+    events: list[tuple[str, _Point, float, float, str]] = field(default_factory=list)
+    """(kind, record, value, score, evidence) of every transition, the opening one first."""
     acknowledged_after: int | None = None
     """Record id after which the kept acknowledgement was applied."""
     last_value: float = 0.0
@@ -383,6 +408,7 @@ def replay_tracks(
         if (stored.channel_id, stored.tooth) in keys:
             old_alarms[(stored.channel_id, stored.tooth)].append(stored)
     changes: list[AlarmChange] = []
+    replayed_tracks: list[tuple[tuple[int, int], TrackState, list[_Episode]]] = []
     for key in sorted(keys):
         channel_id, tooth = key
         previous = {a.raised_record_id: a for a in old_alarms.get(key, [])}
@@ -402,7 +428,7 @@ def replay_tracks(
                 if transition.opened:
                     assert state.baseline is not None and evaluation.spread is not None
                     episode = _Episode(point, transition.kind, state.baseline.centre,
-                                       evaluation.spread)
+                                       evaluation.spread, transition.evidence)
                     episodes.append(episode)
                 elif episode is None:
                     continue
@@ -411,7 +437,7 @@ def replay_tracks(
                 else:
                     episode.severity = transition.kind
                 episode.events.append((transition.kind, point, transition.value,
-                                       transition.score))
+                                       transition.score, transition.evidence))
             if episode is not None and evaluation.score is not None:
                 episode.last_value, episode.last_score = point.value, evaluation.score
             if (
@@ -427,12 +453,20 @@ def replay_tracks(
                 episode.acknowledged = state.acknowledged and episode.cleared_at is None
             if episode is not None and episode.cleared_at is not None:
                 episode = None
-        kept: set[int] = set()
-        for replayed in episodes:
-            alarm = previous.get(replayed.raised.record_id)
-            changes.extend(_write_episode(session, rule, channel_id, tooth, replayed, alarm))
-            if alarm is not None:
-                kept.add(alarm.id)
+        replayed_tracks.append((key, state, episodes))
+    # Written in the order a sequential evaluation opens them: by the raising record, and
+    # within one record the strongest first (:func:`_strongest_first`).
+    kept: set[int] = set()
+    for key, replayed in sorted(
+        ((key, episode) for key, _state, episodes in replayed_tracks for episode in episodes),
+        key=lambda item: (item[1].raised.taken_at, item[1].raised.sha256, -item[1].events[0][3]),
+    ):
+        alarm = {a.raised_record_id: a for a in old_alarms.get(key, [])}.get(replayed.raised.record_id)
+        changes.extend(_write_episode(session, rule, key[0], key[1], replayed, alarm))
+        if alarm is not None:
+            kept.add(alarm.id)
+    for key, state, _episodes in replayed_tracks:
+        channel_id, tooth = key
         for stored in old_alarms.get(key, []):
             if stored.id not in kept:
                 changes.append(_change(rule, stored, "withdrawn", False, stored.last_value,
@@ -475,6 +509,7 @@ def _write_episode(
     alarm.raised_at = episode.raised.taken_at
     alarm.raised_record_id = episode.raised.record_id
     alarm.severity = episode.severity
+    alarm.evidence = episode.evidence
     alarm.baseline_centre = episode.baseline_centre
     alarm.baseline_spread = episode.baseline_spread
     alarm.last_value, alarm.last_score = episode.last_value, episode.last_score
@@ -485,11 +520,11 @@ def _write_episode(
     session.flush()
     history: list[AlarmEvent] = []
     changes: list[AlarmChange] = []
-    for index, (kind, point, value, score) in enumerate(episode.events):
+    for index, (kind, point, value, score, evidence) in enumerate(episode.events):
         history.append(AlarmEvent(alarm_id=alarm.id, state=kind, at=point.taken_at,
                                   record_id=point.record_id, value=value, score=score))
         if (kind, point.record_id) not in old_events:
-            changes.append(_change(rule, alarm, kind, index == 0, value, score))
+            changes.append(_change(rule, alarm, kind, index == 0, value, score, evidence))
         if acknowledgement is not None and episode.acknowledged_after == point.record_id:
             history.append(AlarmEvent(alarm_id=alarm.id, state="acknowledged",
                                       at=acknowledgement.at, who=acknowledgement.who,

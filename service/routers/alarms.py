@@ -21,7 +21,7 @@ AlarmId = Annotated[int, Path(ge=1, le=2**31 - 1, description="Alarm id.", examp
 @router.get(
     "",
     response_model=schemas.AlarmList,
-    summary="List alarms, newest first",
+    summary="List alarms, newest first (those raised by one record: highest score first)",
     description="`raised_at` is the `taken_at` of the record that raised the alarm. "
     "`open=true` keeps alarms that are not cleared. `tooth` is null for a whole-record "
     "indicator. `format=csv` answers text/csv.",

@@ -191,7 +191,9 @@ class AlarmRepository(Repository[Alarm]):
         campaign_id: int | None = None,
     ) -> builtins.list[Alarm]:
         """Alarms newest first, filtered by rig, campaign (through the alarm's channel) and
-        state(s); ``open_only`` = not cleared."""
+        state(s); ``open_only`` = not cleared. Alarms raised by the same record come highest
+        score first: of the neighbouring teeth one spall alarms together, its own tooth
+        leads."""
         query = sa.select(Alarm).options(selectinload(Alarm.channel))
         if rig_id is not None:
             query = query.where(Alarm.rig_id == rig_id)
@@ -206,7 +208,7 @@ class AlarmRepository(Repository[Alarm]):
             query = query.where(Alarm.state.in_(states))
         if open_only:
             query = query.where(Alarm.state != "cleared")
-        query = query.order_by(Alarm.raised_at.desc(), Alarm.id.desc()).offset(offset)
+        query = query.order_by(Alarm.raised_at.desc(), Alarm.last_score.desc(), Alarm.id.desc()).offset(offset)
         if limit is not None:
             query = query.limit(limit)
         return list(self.session.scalars(query))

@@ -47,7 +47,7 @@ def evaluation_snapshot(session: Session, rig_id: int, *, digits: int | None = N
             a.indicator, a.tooth, a.state, a.severity, a.raised_at,
             sha_by_record.get(a.raised_record_id or 0), a.cleared_at, number(a.last_value),
             number(a.last_score), number(a.baseline_centre), number(a.baseline_spread),
-            [event(e) for e in alarms_repo.history(a.id)],
+            a.evidence, [event(e) for e in alarms_repo.history(a.id)],
         )
         for a in sorted(alarms_repo.list(rig_id=rig_id, limit=None),
                         key=lambda a: (a.indicator, a.tooth, a.raised_at))

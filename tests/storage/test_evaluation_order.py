@@ -158,3 +158,40 @@ def test_the_score_rule_pools_its_teeth_and_replays_to_the_same_in_any_order(
     spread_used = alarms[7][10]
     assert own_spread == pytest.approx(1.0)  # the rule's floor: tooth 7 alone looks steady
     assert 1.5 < spread_used < 4.0  # the teeth's day-to-day spread of 2.5, pooled
+
+
+def _neighbours_depth(index: int, day: int) -> dict[int, float]:
+    """Teeth 7 and 8 leave their baseline on day 10 together, tooth 8 the more (a spall on 8
+    whose ring reaches 7 less: the higher number is the stronger one, so tooth order and
+    strength order differ)."""
+    depths = _depth(index, min(day, 5))
+    if day >= 10:
+        depths[7], depths[8] = 0.16, 0.2
+    return depths
+
+
+def _ingest_neighbours(session: Session, tag: str, order: list[int]) -> int:
+    campaign = CampaignRepository(session).ensure(campaign_config(f"camp-{tag}", f"rig-{tag}"))
+    AlarmRuleRepository(session).create(campaign.rig_id, "mci_depth", baseline_records=4,
+                                        persistence=1, warning_level=4.0, alarm_level=8.0)
+    session.commit()
+    _add_and_evaluate(session, campaign, tag, order, lambda sha256, index, day: analysis(
+        sha256=sha256, mci_depth=_neighbours_depth(index, day)))
+    return campaign.rig_id
+
+
+@pytest.mark.parametrize("arrival", ["in order", "day 10 late"])
+def test_the_alarms_one_record_opens_come_strongest_first(db_session: Session, arrival: str) -> None:
+    """One record opens alarms on teeth 7 and 8, tooth 8 scoring higher: its alarm is opened
+    first (lowest id) and listed first among that record's, in order or replayed after a
+    late record; each keeps what raised it."""
+    order = list(range(len(DAYS)))
+    if arrival == "day 10 late":
+        order = [i for i in order if DAYS[i] != 10] + [DAYS.index(10)]
+    rig_id = _ingest_neighbours(db_session, "e" if arrival == "in order" else "f", order)
+    alarms = AlarmRepository(db_session).list(rig_id=rig_id, limit=None)
+    raised_on_day_10 = [a for a in alarms if a.raised_at == T0 + dt.timedelta(days=10)]
+    assert [a.tooth for a in raised_on_day_10] == [8, 7]
+    assert raised_on_day_10[0].id < raised_on_day_10[1].id
+    assert raised_on_day_10[0].last_score > raised_on_day_10[1].last_score
+    assert {a.evidence for a in raised_on_day_10} == {"level"}

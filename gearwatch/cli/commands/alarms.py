@@ -15,7 +15,8 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "alarms",
         help="list alarms (table, --csv or --json)",
-        description="Alarms newest first, as the REST API lists them: a whole-record alarm has "
+        description="Alarms newest first (those raised by one record: highest score first), as the "
+        "REST API lists them: a whole-record alarm has "
         "no tooth (`where` says `whole record`).",
     )
     parser.add_argument("--rig", help="only this rig")
