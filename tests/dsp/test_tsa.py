@@ -151,7 +151,9 @@ def test_difference_signal_of_a_spalled_pinion_keeps_the_spall() -> None:
 
 
 @pytest.mark.parametrize(
-    "module", ["dsp.tach", "dsp.angle", "dsp.tsa", "dsp.synthetic", "dsp.robust", "dsp.quality"]
+    "module",
+    ["dsp.tach", "dsp.angle", "dsp.tsa", "dsp.synthetic", "dsp.robust", "dsp.quality",
+     "dsp.meshspectrum", "dsp.meshtrack", "dsp.tachless"],
 )
 def test_docstring_examples_run(module: str) -> None:
     import doctest
