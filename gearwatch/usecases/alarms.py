@@ -409,9 +409,10 @@ def replay_tracks(
             old_alarms[(stored.channel_id, stored.tooth)].append(stored)
     changes: list[AlarmChange] = []
     replayed_tracks: list[tuple[tuple[int, int], TrackState, list[_Episode]]] = []
+    previous_by_key: dict[tuple[int, int], dict[int | None, Alarm]] = {}
     for key in sorted(keys):
         channel_id, tooth = key
-        previous = {a.raised_record_id: a for a in old_alarms.get(key, [])}
+        previous = previous_by_key[key] = {a.raised_record_id: a for a in old_alarms.get(key, [])}
         ack_after = {
             record_id: position
             for record_id, alarm in previous.items()
@@ -461,7 +462,7 @@ def replay_tracks(
         ((key, episode) for key, _state, episodes in replayed_tracks for episode in episodes),
         key=lambda item: (item[1].raised.taken_at, item[1].raised.sha256, -item[1].events[0][3]),
     ):
-        alarm = {a.raised_record_id: a for a in old_alarms.get(key, [])}.get(replayed.raised.record_id)
+        alarm = previous_by_key[key].get(replayed.raised.record_id)
         changes.extend(_write_episode(session, rule, key[0], key[1], replayed, alarm))
         if alarm is not None:
             kept.add(alarm.id)
