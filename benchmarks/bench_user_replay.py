@@ -15,10 +15,14 @@ absent from the records and the manifest — and each folder goes through the re
     gearwatch alarms --json --db sqlite:///DIR/gw.db --limit 1000
 
 Nothing in-process touches the detection: what is scored is what an operator would read. The
-tach-less campaign's tooth numbers are its own frame (founded by its first record); to score them
-they are mapped to the tach numbering through that first record, analysed in-process both ways
-(:func:`gearwatch.usecases.analyze.analyze_record`; the same record, so the two averages differ by
-the frame alone).
+tach-less campaign's tooth numbers are its own frame (founded by its first placed record); to
+score them they are mapped to the tach numbering through that record's two stored pinion averages
+(the same record analysed both ways, so they differ by the frame alone: the peak of their
+circular cross-correlation). Every placed tach-less day is scored the same way: *right* when its
+stored average sits against the same day's tach average where most placed days of the campaign
+put it (within half a tooth), *wrong* otherwise — the product's tooth frame checked through what
+it stored. (The consensus, not the founding day alone: one day's two averages can match a tooth
+off when a sweeping speed reshapes them differently; seed 10414's founding day did.)
 
 Printed per campaign: rig, onset day and spalled tooth, and for each variant the first day with a
 per-tooth alarm, its strongest alarm there (tooth, indicator, score), the first whole-record alarm
@@ -36,7 +40,12 @@ Measured 2026-12-08 on fresh seeds 10400–10423 (never used before; nothing was
 
     tach-less against tach, on the 9 spalled campaigns the tach alarmed per tooth: first per-tooth
     alarm within a day 7, its strongest alarm on the same tooth 6
-    tach-less days: {'no angle': 9, 'frame refused': 72, 'placed': 111}
+    tach-less days, by the same day's tach average: {'right': 109, 'wrong': 2, 'refused': 72, 'no angle': 9}
+
+The two days off the consensus are the truth's own limits, not frames found wrong as far as it can
+tell: seed 10414's founding day (every later day sits one tooth from it, in agreement with each
+other; the founding day's two averages matched a tooth off) and seed 10420's day 4 (0.73 of a
+tooth: between two teeth, which the match of two averages cannot decide).
 
 Six onsets fall on the last two days, so "by onset + 1" cannot reach 16 here. Why the tach-less
 days are fewer and weaker: ``docs/tachless.md``, "Replayed as a user would". Seeds 10400–10423 are
@@ -69,44 +78,85 @@ def _seeds(text: str) -> list[int]:
     return seeds
 
 
-def _frame_map(seed_dir: Path, notach_dir: Path) -> list[int] | None:
-    """Tach tooth number (index 0 = tach-less campaign tooth 1) of each tach-less campaign tooth."""
+def _stored_averages(folder: Path) -> dict[int, tuple[Any, str]]:
+    """Per day: the stored pinion average (the campaign's frame when placed) and its frame kind."""
+    import sqlite3
+
     import numpy as np
 
-    from dsp.toothframe import align_fingerprint, mesh_phase_position, tooth_fingerprint
-    from gearwatch.usecases.analyze import analyze_record
-    from ingest.manifest import load_manifest
-    from ingest.sources import read_record
+    with sqlite3.connect(folder / "gw.db") as db:
+        rows = db.execute(
+            "select r.label, c.data, rv.quality from records r"
+            " join result_versions rv on rv.record_id = r.id and rv.is_current"
+            " join curves c on c.result_id = rv.id and c.name = 'pinion_average'"
+        ).fetchall()
+    out = {}
+    for label, data, quality in rows:
+        frame = (json.loads(quality).get("tooth_frames") or {}).get("acc", {})
+        out[int(label.split()[1])] = (np.frombuffer(data, dtype="<f4").astype(np.float64),
+                                      frame.get("kind", "tachometer"))
+    return out
 
-    averages = []
-    for folder in (seed_dir, notach_dir):
-        campaign = load_manifest(folder / "campaign.toml")
-        first = campaign.records[0]
-        analysis = analyze_record(read_record(folder / first.file, campaign), campaign, input_sha256="0" * 64)
-        if not analysis.channels or "pinion_average" not in analysis.channels[0].curves:
-            return None
-        averages.append(np.asarray(analysis.channels[0].curves["pinion_average"], dtype=np.float64))
-    teeth = load_manifest(seed_dir / "campaign.toml").rig.pinion_teeth
-    tach_tooth1 = load_manifest(seed_dir / "campaign.toml").rig.tooth1_pitch_angle_deg
-    tach_avg, own_avg = averages
-    # the same record both ways: the averages differ by a delay; the tach-less one is canonical
-    # (campaign tooth 1 centred at sample 0), the tach one has tooth 1 at tooth1_pitch_angle_deg
-    alignment = align_fingerprint(tooth_fingerprint(own_avg, teeth), tooth_fingerprint(tach_avg, teeth), teeth,
-                                  min_separation_z=0.0, min_correlation=-1.0)
-    if alignment.candidate_teeth is None:
-        return None
-    spr = own_avg.size
-    # the fingerprints are canonical (each moved back by its mesh-phase position), so
-    # own ≈ tach delayed by `delay` samples: tach sample s sits at own sample s + delay
-    delay = (float(alignment.delay_samples) - mesh_phase_position(tach_avg, teeth)
-             + mesh_phase_position(own_avg, teeth))
-    mapping = []
-    for own_tooth in range(1, teeth + 1):
-        own_centre = (own_tooth - 1) * spr / teeth
-        tach_sample = own_centre - delay
-        tach_tooth = round((tach_sample / spr * 360.0 - tach_tooth1) / (360.0 / teeth)) % teeth + 1
-        mapping.append(int(tach_tooth))
-    return mapping
+
+def _frame_kinds(folder: Path) -> list[str]:
+    """The tooth frame's kind of every analysed record (``none``: no shaft angle)."""
+    import sqlite3
+
+    with sqlite3.connect(folder / "gw.db") as db:
+        rows = db.execute("select quality from result_versions where is_current").fetchall()
+    return [(json.loads(quality).get("tooth_frames") or {}).get("acc", {}).get("kind", "tachometer")
+            for (quality,) in rows]
+
+
+def _delay_samples(late: Any, early: Any) -> int:
+    """Whole-sample delay of ``late`` behind ``early`` (one record analysed two ways: the peak of
+    their circular cross-correlation)."""
+    import numpy as np
+
+    correlation = np.fft.irfft(np.fft.rfft(late) * np.conj(np.fft.rfft(early)), n=late.size)
+    return int(np.argmax(correlation))
+
+
+def _tach_less_frames(tach_dir: Path, notach_dir: Path) -> tuple[list[int] | None, dict[str, int]]:
+    """The tach numbering of each tach-less campaign tooth (index 0 = campaign tooth 1), read
+    through the founding record, and the tach-less days scored against the same day's tach
+    average: ``right`` when the campaign frame sits where the placed days agree it sits (within half
+    a tooth), ``wrong`` otherwise, besides ``refused`` and ``no angle``."""
+    tach, notach = _stored_averages(tach_dir), _stored_averages(notach_dir)
+    campaign = json.loads((tach_dir / "truth.json").read_text(encoding="utf-8"))
+    teeth = int(campaign["base_model"]["geometry"]["pinion_teeth"])
+    tooth1_deg = float(campaign["days"][0]["tooth1_pitch_angle_deg"])
+    counts = {"right": 0, "wrong": 0, "refused": 0, "no angle": 0}
+    placed = {day: avg for day, (avg, kind) in notach.items() if kind == "campaign" and day in tach}
+    for kind in _frame_kinds(notach_dir):
+        if kind == "refused":
+            counts["refused"] += 1
+        elif kind == "none":
+            counts["no angle"] += 1
+    if not placed:
+        return None, counts
+    # each placed day's delay behind its tach average; the frame holds if they agree. The
+    # consensus (the most common whole-tooth offset from the founding day's) is the truth: one
+    # day's match of its two averages can itself be a tooth off when a sweeping speed reshapes
+    # them differently (docs/tachless.md), and the founding day's is no exception
+    founding = min(placed)
+    size = placed[founding].size
+    per_tooth = size / teeth
+    first = _delay_samples(placed[founding], tach[founding][0])
+    offsets = {day: (_delay_samples(avg, tach[day][0]) - first + size / 2) % size - size / 2
+               for day, avg in placed.items()}
+    whole = [round(off / per_tooth) for off in offsets.values()]
+    consensus = max(set(whole), key=whole.count) * per_tooth
+    for off in offsets.values():
+        counts["right" if abs(off - consensus) < per_tooth / 2 else "wrong"] += 1
+    delay = first + consensus
+    # campaign tooth j is centred at sample (j − 1)·per_tooth of the campaign frame; the tach
+    # average's sample there is that minus the delay, and its tooth 1 sits at tooth1_deg
+    mapping = [
+        round(((j * per_tooth - delay) / size * 360.0 - tooth1_deg) / (360.0 / teeth)) % teeth + 1
+        for j in range(teeth)
+    ]
+    return mapping, counts
 
 
 def _run_one(job: tuple[int, bool, int, float, str]) -> str:
@@ -153,6 +203,7 @@ def _variant(folder: Path) -> dict[str, Any]:
 
 def _report(seeds: list[int], out: Path) -> None:
     rows = []
+    totals = {"right": 0, "wrong": 0, "refused": 0, "no angle": 0}
     for seed in seeds:
         tach_dir, notach_dir = out / f"{seed}-tach", out / f"{seed}-notach"
         truth = json.loads((tach_dir / "truth.json").read_text(encoding="utf-8"))
@@ -160,8 +211,10 @@ def _report(seeds: list[int], out: Path) -> None:
         tooth = truth["days"][-1]["spalled_teeth"][0]["tooth"] if onset else None
         geometry = truth["base_model"]["geometry"]
         tach, notach = _variant(tach_dir), _variant(notach_dir)
-        mapping = _frame_map(tach_dir, notach_dir) if notach["first"] else None
-        notach_tooth = mapping[notach["first"][0][0] - 1] if mapping else None
+        mapping, frames = _tach_less_frames(tach_dir, notach_dir)
+        for key, count in frames.items():
+            totals[key] += count
+        notach_tooth = mapping[notach["first"][0][0] - 1] if mapping and notach["first"] else None
         rows.append((seed, onset, tooth, tach, notach, notach_tooth))
         print(f"{seed}  Z{geometry['pinion_teeth']}/{geometry['gear_teeth']} ε {geometry['contact_ratio']:.2f}  "
               f"onset {onset} tooth {tooth}")
@@ -194,25 +247,7 @@ def _report(seeds: list[int], out: Path) -> None:
     print()
     print(f"tach-less against tach, on the {len(alarmed)} spalled campaigns the tach alarmed per tooth: "
           f"first per-tooth alarm within a day {within}, its strongest alarm on the same tooth {same}")
-    unplaced = {"no angle": 0, "frame refused": 0, "placed": 0}
-    for seed in seeds:
-        for line in _frames(out / f"{seed}-notach"):
-            unplaced[line] += 1
-    print(f"tach-less days: {unplaced}")
-
-
-def _frames(folder: Path) -> list[str]:
-    """Per tach-less record: placed in the campaign frame, refused, or without a shaft angle."""
-    import sqlite3
-
-    with sqlite3.connect(folder / "gw.db") as db:
-        rows = db.execute("select quality from result_versions").fetchall()
-    kinds = []
-    for (quality,) in rows:
-        frame = (json.loads(quality).get("tooth_frames") or {}).get("acc", {})
-        kind = frame.get("kind")
-        kinds.append("placed" if kind == "campaign" else "no angle" if kind == "none" else "frame refused")
-    return kinds
+    print(f"tach-less days, by the same day's tach average: {totals}")
 
 
 def main() -> None:
