@@ -51,6 +51,17 @@ operator of a new rig gets, per tooth and whole record together. "Earlier than e
 metric" compares with FM4, the residual's kurtosis, kurtosis and raw kurtosis (difference energy
 alarms in nearly every healthy campaign: its first alarms are not detections).
 
+Tried 2026-12-08 (offline, ``tune`` + ``tune-2`` of the independent generator, the ``change``
+rule alone; not adopted): a **reference predicted at the record's speed** — per order, the mean
+of the reference records plus a slope in the day's relative speed fitted over them (least squares,
+shrunk by 0.002 or not, smoothed over ±4 or ±16 orders), so that what a ±5 % speed change does to
+the path would not count as change. By the day after onset 11 → 11 of 30 (``tune``) and 19 →
+17–18 of 50 (``tune-2``), healthy campaigns alarmed 0 → 0–2 of 30 and 0 → 0 of 50. Three to
+eight reference records cannot fit a slope per order well enough; the day's speed is not what
+holds the independent generator's spalls under the threshold (the spalled tooth's ``change`` the
+day after onset: median 3.2, against a 99th percentile of 3.8 for the highest tooth of a healthy
+day, 366 healthy days; ``tune`` + ``tune-2``).
+
 Measured 2026-11-29 (fourth session): **the whole-record rules' CUSUM waits longer** (h = 5 for
 FM4, the residual's kurtosis and the kurtosis of the average; raw kurtosis keeps h = 3.5;
 :mod:`detection.default_rules` has the study). The per-tooth rules are unchanged. Every healthy
