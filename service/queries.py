@@ -53,10 +53,11 @@ def tooth_sectors(
 
 def mci_baseline_band(
     session: Session, rig_pk: int, channel: str, *, relative: bool = False,
-    campaign_ids: Sequence[int] | None = None,
+    campaign_ids: Sequence[int] | None = None, pair_tooth1_deg: float | None = None,
 ) -> schemas.BaselineBand | None:
     """The MCI band of a rig's channel (:func:`storage.operator_queries.mci_band`)."""
-    band = mci_band(session, rig_pk, channel, relative=relative, campaign_ids=campaign_ids)
+    band = mci_band(session, rig_pk, channel, relative=relative, campaign_ids=campaign_ids,
+                    pair_tooth1_deg=pair_tooth1_deg)
     if band is None:
         return None
     return schemas.BaselineBand(

@@ -338,6 +338,17 @@ class CurvesOut(BaseModel):
     samples_per_rev: int
     pinion_teeth: int | None
     tooth1_pitch_angle_deg: float
+    tooth_frame: str = Field(
+        default="tachometer",
+        description="Where the record's analysis put the teeth: 'tachometer', 'campaign' (no "
+        "tach: the campaign's tooth frame, turned here into the pair's), or 'refused' / 'none' "
+        "(no tooth frame or no shaft angle: the teeth are not numbered and `sectors` is empty).",
+    )
+    turned_deg: float = Field(
+        default=0.0,
+        description="How far the angle-domain curves (pinion average, difference, MCI) were "
+        "turned from the record's stored tooth frame into the pair's (0 with a tachometer).",
+    )
     curves: dict[str, list[float | None]] = Field(
         description="float32 values; NaN travels as null."
     )

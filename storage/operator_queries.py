@@ -7,7 +7,7 @@ Like the other repositories: takes a session, never commits. Kept apart from
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,7 +18,7 @@ from sqlalchemy.orm import Session
 from gearwatch.floor.defaults import MAD_TO_SIGMA
 from gearwatch.floor.errors import InputError, NotFound
 from gearwatch.floor.indicators import all_indicators, indicator_info, indicator_unit
-from gearwatch.floor.results import METRIC_NAMES
+from gearwatch.floor.results import METRIC_NAMES, TOOTH1_ANGLE_KEY
 from storage.models import Alarm, Campaign, Channel, Record, RecordMetric, Rig, ToothIndicator
 from storage.repositories import (
     AlarmRepository,
@@ -202,24 +202,86 @@ class Band:
     records: int
 
 
+ANGLE_CURVES = frozenset({"pinion_average", "difference", "mci_raw", "mci"})
+"""Stored curves over one pinion revolution of their record's tooth frame (:func:`in_pair_frame`
+turns them); the gear average (a gear revolution) and the speed profile (per revolution) are not."""
+
+
+@dataclass(frozen=True)
+class CurveFrame:
+    """Where a record's angle-domain curves put the pinion's teeth."""
+
+    kind: str
+    """``tachometer``, ``campaign`` (no tach: the campaign's tooth frame), ``refused`` or ``none``
+    (no tooth frame, no shaft angle: the teeth are not numbered), as the analysis stored it."""
+    tooth1_pitch_angle_deg: float | None
+    """Tooth 1's pitch angle in the stored curves; None when the teeth are not numbered."""
+
+
+def curve_frame(
+    quality: Mapping[str, Any] | None, baseline_stats: Mapping[str, Any] | None, channel: str,
+    pair_tooth1_deg: float,
+) -> CurveFrame:
+    """The tooth frame of one channel's stored curves, from its result's ``quality`` and its
+    ``baseline_stats`` (:data:`gearwatch.floor.results.TOOTH1_ANGLE_KEY`).
+
+    A tach-less record's curves are in the campaign's frame, whose tooth 1 is not where the
+    manifest's ``tooth1_pitch_angle_deg`` says (0° when the campaign's reference is itself
+    tach-less). A result stored before the angle was kept is taken at the pair's angle when it
+    came from a tachometer, and as unnumbered otherwise.
+
+    >>> curve_frame({"tooth_frames": {"acc": {"kind": "campaign"}}}, {"tooth1_pitch_angle_deg": 0.0}, "acc", 223.2)
+    CurveFrame(kind='campaign', tooth1_pitch_angle_deg=0.0)
+    >>> curve_frame({"tooth_frames": {"acc": {"kind": "refused"}}}, {}, "acc", 223.2)
+    CurveFrame(kind='refused', tooth1_pitch_angle_deg=None)
+    >>> curve_frame({}, {}, "acc", 223.2)
+    CurveFrame(kind='tachometer', tooth1_pitch_angle_deg=223.2)
+    """
+    frame = ((quality or {}).get("tooth_frames") or {}).get(channel) or {}
+    kind = str(frame.get("kind") or "tachometer")  # stored before tooth frames existed: a tach
+    angle = (baseline_stats or {}).get(TOOTH1_ANGLE_KEY)
+    if angle is None and kind == "tachometer":
+        angle = pair_tooth1_deg
+    return CurveFrame(kind, None if angle is None else float(angle))
+
+
+def in_pair_frame(values: np.ndarray, tooth1_deg: float, pair_tooth1_deg: float) -> np.ndarray:
+    """A curve over one pinion revolution turned from its record's tooth frame (tooth 1 at
+    ``tooth1_deg``) to the gear pair's (tooth 1 at ``pair_tooth1_deg``), to the nearest sample.
+
+    >>> in_pair_frame(np.arange(8.0), 0.0, 90.0).tolist()   # tooth 1 moves from sample 0 to 2
+    [6.0, 7.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    """
+    values = np.asarray(values)
+    if values.size == 0:
+        return values
+    shift = round((pair_tooth1_deg - tooth1_deg) / 360.0 * values.size) % values.size
+    return np.roll(values, shift)
+
+
 def mci_band(
     session: Session, rig_pk: int, channel: str, *, relative: bool = False,
-    campaign_ids: Sequence[int] | None = None,
+    campaign_ids: Sequence[int] | None = None, pair_tooth1_deg: float | None = None,
 ) -> Band | None:
     """The MCI band of a rig's channel over its first accepted records (current results).
 
     As many records as the rig's ``mci_depth`` rule learns its baseline from (default 10), of
     the ``campaign_ids`` (default: the campaigns of the rig's current gear pair,
-    :meth:`~storage.repositories.RigRepository.current_pair_campaign_ids`). Only
+    :meth:`~storage.repositories.RigRepository.current_pair_campaign_ids`), whose teeth are
+    numbered (:func:`curve_frame`: a tach-less record whose tooth frame was refused is in no
+    frame the others share), each curve turned into the pair's tooth frame (tooth 1 at
+    ``pair_tooth1_deg``, default the rig's current pair's; :func:`in_pair_frame`). Only
     curves of the most common length take part (a re-analysis with other samples per
     revolution changes the length). ``None`` with fewer than :data:`MIN_BAND_RECORDS`.
     ``relative``: each curve minus its own median first (:func:`relative_to_median`).
     """
     rule = AlarmRuleRepository(session).get_for(rig_pk, "mci_depth")
     count = rule.baseline_records if rule is not None else DEFAULT_BASELINE_RECORDS
+    rigs = RigRepository(session)
     if campaign_ids is None:
-        rigs = RigRepository(session)
         campaign_ids = rigs.current_pair_campaign_ids(rigs.get(rig_pk))
+    if pair_tooth1_deg is None:
+        pair_tooth1_deg = rig_gear_pair(rigs.get(rig_pk)).tooth1_pitch_angle_deg
     records = RecordRepository(session)
     curves: list[np.ndarray] = []
     pair_records = session.scalars(
@@ -233,9 +295,13 @@ def mci_band(
         result = records.current_result(record.id)
         if result is None:
             continue
+        stats = next((c.baseline_stats for c in records.channel_results(result.id)
+                      if c.channel.name == channel), None)
+        frame = curve_frame(result.quality, stats, channel, pair_tooth1_deg)
         found = records.curves(result.id, channel=channel, names=["mci"])
-        if found:
-            values = found[0].values.astype(np.float64)
+        if found and frame.tooth1_pitch_angle_deg is not None:
+            values = in_pair_frame(found[0].values.astype(np.float64),
+                                   frame.tooth1_pitch_angle_deg, pair_tooth1_deg)
             curves.append(relative_to_median(values) if relative else values)
     if not curves:
         return None

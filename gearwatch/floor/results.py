@@ -51,6 +51,13 @@ enough records, and recomputed when a record arrives out of order."""
 STORED_TOOTH_INDICATORS = TOOTH_INDICATORS + HISTORY_TOOTH_INDICATORS
 """Every per-tooth indicator a trend or an alarm rule can name."""
 
+TOOTH1_ANGLE_KEY = "tooth1_pitch_angle_deg"
+"""Key of a channel's ``baseline_stats`` holding tooth 1's pitch angle in that record's stored
+angle-domain curves (the pinion average, the difference signal, the MCI): the manifest's angle
+with a tachometer, the campaign frame's without one (0° when the campaign's reference is a
+tach-less record). Absent when the record's teeth are not numbered (a refused tooth frame, no
+shaft angle, no tooth counts)."""
+
 
 @dataclass(frozen=True)
 class AnalysisParameters:

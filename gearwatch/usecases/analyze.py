@@ -48,6 +48,7 @@ from dsp.tsa import difference_signal, regular_signal, residual_signal
 from gearwatch.floor.campaign import Campaign, ChannelConfig, RecordData
 from gearwatch.floor.errors import RecordFormatError, RecordRejected
 from gearwatch.floor.results import (
+    TOOTH1_ANGLE_KEY,
     AnalysisParameters,
     ChannelAnalysis,
     ChannelQuality,
@@ -521,7 +522,7 @@ def _analyze_channel(
         curves=curves,
         quality=quality,
         baseline_stats=_baseline_stats(residual, average, pinion_teeth, baselines) | (
-            {} if per_tooth_refused else {"tooth1_pitch_angle_deg": float(tooth1_pitch_angle_deg)}
+            {} if per_tooth_refused else {TOOTH1_ANGLE_KEY: float(tooth1_pitch_angle_deg)}
         ),
         tooth_frame=tooth_frame,
         frame_fingerprints=placed.fingerprints,

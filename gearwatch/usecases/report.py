@@ -29,6 +29,8 @@ from gearwatch.floor.indicators import indicator_info, indicator_unit
 from gearwatch.floor.version import code_version
 from storage.operator_queries import (
     OperatorQueries,
+    curve_frame,
+    in_pair_frame,
     mci_band,
     relative_to_median,
     tooth_sector_list,
@@ -357,16 +359,22 @@ def _mci_curves(
     wanted += [r for r in accepted[1:-1] if r.taken_at.date() in alarm_days]
     if accepted[-1] is not accepted[0]:
         wanted.append(accepted[-1])
-    band = mci_band(session, rig.id, channel, relative=True)
+    pair_tooth1 = float(rig.tooth1_pitch_angle_deg)
+    band = mci_band(session, rig.id, channel, relative=True, pair_tooth1_deg=pair_tooth1)
     found: list[tuple[str, list[float]]] = []
     for day in wanted:
         result = records_repo.current_result(day.record_id)
         if result is None:
             continue
+        stats = next((c.baseline_stats for c in records_repo.channel_results(result.id)
+                      if c.channel.name == channel), None)
+        # a tach-less record's curve is in the campaign's tooth frame: turned into the pair's,
+        # where the sectors are drawn; one whose teeth are not numbered is left out
+        own_tooth1 = curve_frame(result.quality, stats, channel, pair_tooth1).tooth1_pitch_angle_deg
         data = records_repo.curves(result.id, channel=channel, names=["mci"])
-        if data:
-            found.append((record_name(day.label, day.taken_at),
-                          relative_to_median(data[0].values).tolist()))
+        if data and own_tooth1 is not None:
+            turned = in_pair_frame(data[0].values, own_tooth1, pair_tooth1)
+            found.append((record_name(day.label, day.taken_at), relative_to_median(turned).tolist()))
     if not found:
         return None
     return CurveSet(

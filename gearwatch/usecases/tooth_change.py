@@ -32,7 +32,7 @@ import sqlalchemy as sa
 from sqlalchemy.orm import Session
 
 from dsp.toothchange import DEFAULT_REFERENCE_RECORDS, campaign_change_scores, campaign_change_state
-from gearwatch.floor.results import HISTORY_TOOTH_INDICATORS
+from gearwatch.floor.results import HISTORY_TOOTH_INDICATORS, TOOTH1_ANGLE_KEY
 from storage.models import (
     Campaign,
     ChannelResult,
@@ -45,8 +45,6 @@ from storage.repositories import RecordRepository, gear_pair, rig_gear_pair
 logger = logging.getLogger(__name__)
 
 (INDICATOR,) = HISTORY_TOOTH_INDICATORS  # "change", the one history indicator
-TOOTH1_KEY = "tooth1_pitch_angle_deg"
-"""Key of ``ChannelResult.baseline_stats`` holding the tooth-1 angle of the stored average."""
 RELATIVE_TOLERANCE = 1e-9
 """Stored values this close to the recomputed ones are kept (float32 curves, summation order)."""
 
@@ -98,7 +96,7 @@ def _averages(
     averages: list[np.ndarray | None] = []
     angles: list[float] = []
     for channel_result, *_ in rows:
-        angle = (channel_result.baseline_stats or {}).get(TOOTH1_KEY)
+        angle = (channel_result.baseline_stats or {}).get(TOOTH1_ANGLE_KEY)
         data = curves.get(channel_result.result_id)
         samples = 0 if data is None else len(data) // 4
         if (isinstance(angle, int | float) and math.isfinite(angle) and data is not None

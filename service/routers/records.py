@@ -8,6 +8,7 @@ import tempfile
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
@@ -53,6 +54,7 @@ from service.upload import (
     check_declared_length,
     receive_upload,
 )
+from storage.operator_queries import ANGLE_CURVES, curve_frame, in_pair_frame
 from storage.raw_store import RawStore
 from storage.repositories import (
     AuditRepository,
@@ -329,10 +331,15 @@ def reprocess(
     "/records/{record_id}/curves",
     response_model=schemas.CurvesOut,
     summary="Curves of a record (one channel), with tooth sectors and the MCI baseline band",
-    description="Curves are over one pinion revolution, sample `i` at `360·i/n` degrees after "
-    "the tach reference edge. `band=true` adds the MCI baseline band: pointwise median ± "
-    "3·1.4826·MAD of the `mci` curve over the rig's first accepted records (as many as the "
-    "rig's `mci_depth` rule learns its baseline from, default 10).",
+    description="Curves are over one pinion revolution, sample `i` at `360·i/n` degrees in the "
+    "gear pair's tooth frame (tooth 1 at `tooth1_pitch_angle_deg`): with a tachometer, after "
+    "its reference edge; without one, the curves of the pinion average, the difference signal "
+    "and the MCI are turned from the campaign's tooth frame into it (`turned_deg`). A record "
+    "whose teeth are not numbered (`tooth_frame` `refused` or `none`: no tach and no tooth "
+    "frame found) has its curves as stored and no tooth sectors. `band=true` adds the MCI "
+    "baseline band: pointwise median ± 3·1.4826·MAD of the `mci` curve over the rig's first "
+    "accepted records whose teeth are numbered (as many as the rig's `mci_depth` rule learns "
+    "its baseline from, default 10), each in the pair's tooth frame.",
     responses=errors(401, 404, 422),
 )
 def curves(
@@ -373,26 +380,35 @@ def curves(
         channel = channel_results[0].channel.name
     elif channel not in {c.channel.name for c in channel_results}:
         raise NotFound(f"record {record_id} has no channel {channel!r}")
-    samples_per_rev = next(c for c in channel_results if c.channel.name == channel).samples_per_rev
-    data = {
-        c.name: finite_list(relative_to_median(c.values) if relative and c.name in
-                            ("mci", "mci_raw") else c.values)
-        for c in records.curves(result.id, channel=channel, names=names)
-    }
+    chosen = next(c for c in channel_results if c.channel.name == channel)
     rigs = RigRepository(db)
     rig = rigs.get(record.rig_id)
     # the gear pair this record's campaign ran, which need not be the rig's current one
     pair = gear_pair(record.campaign.manifest) or rig_gear_pair(rig)
+    frame = curve_frame(result.quality, chosen.baseline_stats, channel, pair.tooth1_pitch_angle_deg)
+    own_tooth1 = frame.tooth1_pitch_angle_deg  # None: the record's teeth are not numbered
+    turned = 0.0 if own_tooth1 is None else pair.tooth1_pitch_angle_deg - own_tooth1
+
+    def shown(name: str, values: np.ndarray) -> list[float | None]:
+        if own_tooth1 is not None and name in ANGLE_CURVES:
+            values = in_pair_frame(values, own_tooth1, pair.tooth1_pitch_angle_deg)
+        return finite_list(relative_to_median(values) if relative and name in ("mci", "mci_raw")
+                           else values)
+
+    data = {c.name: shown(c.name, c.values) for c in records.curves(result.id, channel=channel, names=names)}
     return schemas.CurvesOut(
         record_id=record.id,
         result_id=result.id,
         channel=channel,
-        samples_per_rev=samples_per_rev,
+        samples_per_rev=chosen.samples_per_rev,
         pinion_teeth=pair.pinion_teeth,
         tooth1_pitch_angle_deg=pair.tooth1_pitch_angle_deg,
+        tooth_frame=frame.kind,
+        turned_deg=round(turned % 360.0, 6),
         curves=data,
-        sectors=tooth_sectors(pair.pinion_teeth, pair.tooth1_pitch_angle_deg),
+        sectors=[] if own_tooth1 is None else tooth_sectors(pair.pinion_teeth, pair.tooth1_pitch_angle_deg),
         baseline_band=mci_baseline_band(
-            db, rig.id, channel, relative=relative, campaign_ids=rigs.pair_campaign_ids(rig, pair)
+            db, rig.id, channel, relative=relative, campaign_ids=rigs.pair_campaign_ids(rig, pair),
+            pair_tooth1_deg=pair.tooth1_pitch_angle_deg,
         ) if band else None,
     )

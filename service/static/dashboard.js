@@ -332,6 +332,17 @@ function drawHeatmap() {
 }
 
 /* ---------- MCI curve with tooth sectors, the baseline band and a second record ---------- */
+
+// the angle axis of the curves: the tach's, or (no tach) the campaign's tooth frame turned into the pair's
+function numberedFrame(kind) {
+  return !kind || kind === "tachometer" || kind === "campaign";
+}
+function angleAxisLabel(kind) {
+  if (!kind || kind === "tachometer") return "pinion angle after the tach edge (deg)";
+  if (kind === "campaign") return "pinion angle, the pair's tooth frame (deg; no tach: the campaign's frame)";
+  return "pinion angle from this record's mesh phase (deg; teeth not numbered)";
+}
+
 function fillRecordSelects() {
   const accepted = state.records.filter((r) => r.status === "accepted");
   const rec = el("record"), cmp = el("compare");
@@ -390,7 +401,7 @@ async function selectRecord(recordId, compareId) {
   const opts = {
     width: Math.min(900, el("curve").clientWidth || 700), height: 300, series, bands,
     scales: { x: { time: false } },
-    axes: [{ label: "pinion angle after the tach edge (deg)" }, { label: "MCI − its median (Np)" }],
+    axes: [{ label: angleAxisLabel(data.tooth_frame) }, { label: "MCI − its median (Np)" }],
     hooks: {
       drawClear: [(u) => {
         const ctx = u.ctx;
@@ -415,7 +426,9 @@ async function selectRecord(recordId, compareId) {
   el("curve").dataset.sectors = String(new Set(sectors.map((s) => s.tooth)).size);
   el("curve").dataset.record = String(recordId);
   el("curve").dataset.compare = state.compare ? String(state.compare) : "";
-  el("curve-legend").textContent = (data.baseline_band ? `Grey band: the healthy range (median ± 3 robust SD) of the first ${data.baseline_band.records} accepted records; ` : "No baseline band yet (fewer than 3 accepted records); ")
+  el("curve").dataset.toothFrame = data.tooth_frame || "tachometer";
+  el("curve-legend").textContent = (numberedFrame(data.tooth_frame) ? "" : "This record's teeth are not numbered (no tachometer, and its tooth pattern did not place it in the campaign's frame): no tooth sectors. ")
+    + (data.baseline_band ? `Grey band: the healthy range (median ± 3 robust SD) of the first ${data.baseline_band.records} accepted records; ` : "No baseline band yet (fewer than 3 accepted records); ")
     + "each curve is drawn relative to its own median, so a tooth whose sector leaves the band stands out."
     + (highlight ? ` Red sector: tooth ${highlight}.` : "");
 }
