@@ -171,6 +171,9 @@ class CurveSet:
     band_records: int
     curves: list[tuple[str, list[float]]]
     """(record name, MCI minus its median)."""
+    tachless: bool = False
+    """Some curves came from a tach-less record, turned from the campaign's tooth frame into the
+    pair's: the angle axis has no tach edge to refer to."""
 
 
 @dataclass
@@ -362,6 +365,7 @@ def _mci_curves(
     pair_tooth1 = float(rig.tooth1_pitch_angle_deg)
     band = mci_band(session, rig.id, channel, relative=True, pair_tooth1_deg=pair_tooth1)
     found: list[tuple[str, list[float]]] = []
+    tachless = False
     for day in wanted:
         result = records_repo.current_result(day.record_id)
         if result is None:
@@ -370,9 +374,11 @@ def _mci_curves(
                       if c.channel.name == channel), None)
         # a tach-less record's curve is in the campaign's tooth frame: turned into the pair's,
         # where the sectors are drawn; one whose teeth are not numbered is left out
-        own_tooth1 = curve_frame(result.quality, stats, channel, pair_tooth1).tooth1_pitch_angle_deg
+        frame = curve_frame(result.quality, stats, channel, pair_tooth1)
+        own_tooth1 = frame.tooth1_pitch_angle_deg
         data = records_repo.curves(result.id, channel=channel, names=["mci"])
         if data and own_tooth1 is not None:
+            tachless = tachless or frame.kind != "tachometer"
             turned = in_pair_frame(data[0].values, own_tooth1, pair_tooth1)
             found.append((record_name(day.label, day.taken_at), relative_to_median(turned).tolist()))
     if not found:
@@ -382,6 +388,7 @@ def _mci_curves(
         band=(band.lower.tolist(), band.upper.tolist()) if band else None,
         band_records=band.records if band else 0,
         curves=found,
+        tachless=tachless,
     )
 
 
@@ -490,7 +497,8 @@ def curves_figure(curves: CurveSet, highlight: Sequence[int] = ()) -> Any:
         if len(values) == n:
             ax.plot(angle, values, lw=1.1, color=colours[i % len(colours)], label=name)
     ax.set_xlim(0, 360)
-    ax.set_xlabel("pinion angle after the tach edge (deg)")
+    ax.set_xlabel("pinion angle, the pair's tooth frame (deg; no tach: the campaign's frame turned into it)"
+                  if curves.tachless else "pinion angle after the tach edge (deg)")
     ax.set_ylabel("MCI − its median (Np)")
     ax.set_title("MCI curves: first day, alarm days, last day", pad=14)
     ax.legend(fontsize=7, loc="lower right")

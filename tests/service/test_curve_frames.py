@@ -111,3 +111,18 @@ def test_the_frame_helpers_known_answers() -> None:
 
     result = doctest.testmod(storage.operator_queries, optionflags=doctest.ELLIPSIS)
     assert result.failed == 0 and result.attempted >= 4
+
+
+def test_the_report_draws_tachless_curves_in_the_pairs_frame_and_leaves_refused_ones_out(api: Api) -> None:
+    from gearwatch.usecases.report import collect
+
+    _seed(api, ["campaign", "campaign", "campaign", "refused"])
+    with api.session() as session:
+        data = collect(session, "rig-t")
+    assert data.curves is not None and data.curves.tachless
+    shift = round(MANIFEST_TOOTH1_DEG / 360 * SAMPLES)
+    # first and last days are drawn: the refused last day is left out, the first is turned
+    assert [name.split(" — ")[0] for name, _ in data.curves.curves] == ["day 0"]
+    (_, mci), = data.curves.curves
+    assert max(range(SAMPLES), key=lambda i: mci[i]) == shift
+    assert data.curves.band_records == 3
