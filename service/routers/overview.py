@@ -39,7 +39,12 @@ class WorstToothOut(BaseModel):
     indicator: str = Field(description="`score` when stored, else `mci_depth`.")
     value: float
     unit: str
-    record_id: int
+    record_id: int = Field(
+        description="The latest accepted record with per-tooth values: not the last record when "
+        "that one has none (a tach-less record whose teeth could not be numbered, a refused "
+        "record)."
+    )
+    record_label: str = ""
 
 
 class RigOverviewOut(BaseModel):
@@ -98,12 +103,14 @@ def rig_overview(db: Session, rig: Rig) -> RigOverviewOut:
                 column = max(
                     (j for j in range(len(row)) if math.isfinite(row[j])), key=lambda j: row[j]
                 )
+                worst_record = records.get(matrix.record_ids[-1])
                 worst = WorstToothOut(
                     tooth=matrix.teeth[column],
                     indicator=indicator,
                     value=float(row[column]),
                     unit=indicator_unit(indicator, queries.channel_unit(rig.id, matrix.channel)),
                     record_id=matrix.record_ids[-1],
+                    record_label=worst_record.label if worst_record is not None else "",
                 )
                 sparkline = [
                     float(v) if math.isfinite(v) else None

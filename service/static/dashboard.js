@@ -200,7 +200,11 @@ function renderOverview() {
     }
     cells.push(alarms);
     const w = rig.worst_tooth;
-    cells.push(w ? `tooth ${w.tooth}: ${withUnit(w.value, w.unit)} (${info(w.indicator).title})` : (rig.pinion_teeth ? "—" : "no tooth counts"));
+    // the last record may have no per-tooth values (a tach-less day whose teeth were not numbered)
+    const older = w && rig.last_record && w.record_id !== rig.last_record.record_id;
+    cells.push(w ? `tooth ${w.tooth}: ${withUnit(w.value, w.unit)} (${info(w.indicator).title})`
+      + (older ? ` — from ${w.record_label || "an earlier record"}; the last record has no per-tooth values` : "")
+      : (rig.pinion_teeth ? "—" : "no tooth counts"));
     const canvas = document.createElement("canvas");
     canvas.className = "sparkline"; canvas.width = 160; canvas.height = 32;
     cells.push(canvas);

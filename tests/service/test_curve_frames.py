@@ -126,3 +126,13 @@ def test_the_report_draws_tachless_curves_in_the_pairs_frame_and_leaves_refused_
     (_, mci), = data.curves.curves
     assert max(range(SAMPLES), key=lambda i: mci[i]) == shift
     assert data.curves.band_records == 3
+
+
+def test_the_overview_says_which_record_the_worst_tooth_comes_from(api: Api) -> None:
+    """The last record of a tach-less campaign may have no per-tooth values (its teeth were not
+    numbered): the worst tooth shown is an earlier record's, and the overview says which."""
+    ids = _seed(api, ["campaign", "campaign", "campaign", "refused"])
+    rig = next(r for r in api.get("/api/v1/overview").json()["items"] if r["rig_id"] == "rig-t")
+    assert rig["last_record"]["record_id"] == ids[-1]
+    assert rig["worst_tooth"]["record_id"] == ids[2]
+    assert rig["worst_tooth"]["record_label"] == "day 2"
