@@ -40,6 +40,8 @@ def trend_answer(
     data = trend_data(db, rig, indicator, tooth, channel, campaign)
     point = schemas.TrendPoint.model_construct
     data["records"] = [point(**r) for r in data["records"]]
+    data["without_tooth_values"] = [schemas.UnnumberedRecord.model_construct(**r)
+                                    for r in data["without_tooth_values"]]
     return schemas.TrendOut.model_construct(**data)
 
 

@@ -364,6 +364,13 @@ class TrendPoint(BaseModel):
     label: str = Field(default="", description="The record's label (manifest or upload).")
 
 
+class UnnumberedRecord(BaseModel):
+    record_id: int
+    taken_at: dt.datetime
+    label: str = ""
+    reason: str = Field(default="", description="Why its teeth are not numbered.")
+
+
 class TrendOut(BaseModel):
     """``values[i][j]`` is the indicator of ``records[i]`` at ``teeth[j]`` (``null`` if absent).
     A whole-record indicator has one column whose tooth is ``null``."""
@@ -387,6 +394,12 @@ class TrendOut(BaseModel):
     teeth: list[int | None] = Field(examples=[[1, 2, 3]])
     records: list[TrendPoint]
     values: list[list[float | None]] = Field(examples=[[[0.02, 0.03, 0.41]]])
+    without_tooth_values: list[UnnumberedRecord] = Field(
+        default_factory=list,
+        description="A per-tooth trend's accepted records (same campaigns) that have no per-tooth "
+        "values, with why: a tach-less record whose tooth frame was refused or that had no "
+        "shaft angle keeps its whole-record metrics only.",
+    )
 
 
 class AlarmEventOut(BaseModel):

@@ -338,6 +338,21 @@ def tooth_sector_list(
 
 
 # -- answers shared by the REST API, the command line, the report and the notebook --------------
+def unnumbered_reason(quality: Mapping[str, Any], channel: str) -> str | None:
+    """Why a record's teeth are not numbered on ``channel`` (its quality's tooth frame for that
+    channel: ``refused`` or ``none``), or None when they are (or the record says nothing of it).
+
+    >>> unnumbered_reason({"tooth_frames": {"acc": {"kind": "refused", "reason": "ambiguous"}}}, "acc")
+    'ambiguous'
+    >>> unnumbered_reason({"tooth_frames": {"acc": {"kind": "campaign"}}}, "acc") is None
+    True
+    """
+    frame = (quality.get("tooth_frames") or {}).get(channel) or {}
+    if frame.get("kind") not in ("refused", "none"):
+        return None
+    return str(frame.get("reason") or quality.get("per_tooth") or "teeth not numbered")
+
+
 def trend_data(
     session: Session, rig: Any, indicator: str, tooth: int | None, channel: str | None,
     campaign: str | None = None,
@@ -377,6 +392,24 @@ def trend_data(
         matrix = queries.metric_matrix(rig.id, indicator, channel=channel, campaign_id=campaign_id)
         teeth = [None]
     labels = queries.rig_record_labels(rig.id) if matrix.record_ids else {}
+    without: list[dict[str, Any]] = []
+    if info.scope == "tooth" and matrix.channel is not None:
+        # accepted records of the same campaigns whose teeth this channel could not number (a
+        # tach-less record whose tooth frame was refused, or without a shaft angle): said so
+        # rather than left out of the matrix in silence
+        scope_ids = ([campaign_id] if campaign_id is not None
+                     else RigRepository(session).current_pair_campaign_ids(rig))
+        rows = session.execute(
+            sa.select(Record.id, Record.taken_at, Record.label, Record.quality)
+            .where(Record.rig_id == rig.id, Record.status == "accepted",
+                   Record.campaign_id.in_(scope_ids))
+            .order_by(Record.taken_at, Record.id)
+        ).all()
+        for record_id, taken_at, label, quality in rows:
+            reason = unnumbered_reason(quality or {}, matrix.channel)
+            if reason is not None:
+                without.append({"record_id": record_id, "taken_at": taken_at,
+                                "label": label or "", "reason": reason})
     return {
         "rig_id": rig.name,
         "indicator": indicator,
@@ -391,6 +424,7 @@ def trend_data(
             for i, t in zip(matrix.record_ids, matrix.taken_at, strict=True)
         ],
         "values": _cells(matrix.values),
+        "without_tooth_values": without,
     }
 
 

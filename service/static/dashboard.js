@@ -220,6 +220,13 @@ function renderOverview() {
 }
 
 /* ---------- heat map: tooth (rows) × record (columns) ---------- */
+// accepted records a per-tooth trend leaves out: their teeth were not numbered (no tach, no frame)
+function unnumberedNote(trend) {
+  const without = trend.without_tooth_values || [];
+  if (!without.length) return "";
+  return `. ${without.length} more accepted record${without.length > 1 ? "s have" : " has"} no per-tooth values`
+    + ` (teeth not numbered: ${without.map((r) => r.label || "#" + r.record_id).join(", ")}); whole-record metrics only`;
+}
 function openAlarmTeeth() {
   const teeth = new Map();
   for (const a of state.alarms) {
@@ -317,7 +324,8 @@ function drawHeatmap() {
   el("heatmap-legend").textContent =
     `${nRec} accepted records × ${nRows === 1 && trend.teeth[0] === null ? "the whole record" : nRows + " teeth"}; ` +
     (constant ? `every value is ${withUnit(lo, unit)}`
-      : `colour from ${withUnit(lo, unit)} (dark) to ${withUnit(hi, unit)} (yellow), the full range of the values shown`);
+      : `colour from ${withUnit(lo, unit)} (dark) to ${withUnit(hi, unit)} (yellow), the full range of the values shown`) +
+    unnumberedNote(trend);
   const names = [...alarmed.entries()].sort((a, b) => (a[0] === "whole" ? -1 : a[0] - (b[0] === "whole" ? 0 : b[0])))
     .map(([k, s]) => `${k === "whole" ? "whole record" : "tooth " + k} (${s})`);
   const note = el("alarmed-teeth");

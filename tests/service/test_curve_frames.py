@@ -136,3 +136,13 @@ def test_the_overview_says_which_record_the_worst_tooth_comes_from(api: Api) -> 
     assert rig["last_record"]["record_id"] == ids[-1]
     assert rig["worst_tooth"]["record_id"] == ids[2]
     assert rig["worst_tooth"]["record_label"] == "day 2"
+
+
+def test_a_per_tooth_trend_names_the_records_whose_teeth_are_not_numbered(api: Api) -> None:
+    ids = _seed(api, ["campaign", "refused", "campaign"])
+    trend = api.get("/api/v1/rigs/rig-t/trends?indicator=mci_depth").json()
+    assert [r["record_id"] for r in trend["records"]] == [ids[0], ids[2]]
+    (without,) = trend["without_tooth_values"]
+    assert without["record_id"] == ids[1] and without["label"] == "day 1"
+    whole = api.get("/api/v1/rigs/rig-t/trends?indicator=kurtosis").json()
+    assert len(whole["records"]) == 3 and whole["without_tooth_values"] == []

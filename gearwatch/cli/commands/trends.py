@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
                                args.campaign)
     finally:
         engine.dispose()
-    for record in trend["records"]:
+    for record in (*trend["records"], *trend["without_tooth_values"]):
         record["taken_at"] = record["taken_at"].isoformat().replace("+00:00", "Z")
     if args.json:
         print(json_text(trend))
@@ -63,4 +63,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"{trend['rig_id']}: {trend['title']}{unit}, channel {trend['channel']}{scope}")
     print(text_table(["record", "taken at (UTC)", "label", *teeth], rows) if rows
           else "no accepted record")
+    without = trend["without_tooth_values"]
+    if without:
+        print(f"{len(without)} accepted record(s) without per-tooth values (whole-record metrics only):")
+        for record in without:
+            print(f"  {record['record_id']}  {record['taken_at'][:16].replace('T', ' ')}  "
+                  f"{record['label']}: {record['reason'] or 'no per-tooth values'}")
     return 0
