@@ -248,12 +248,15 @@ def _record_rows(session: Session, rig_id: int) -> list[RecordRow]:
         result = records_repo.current_result(record.id)
         quality = record.quality or {}
         score = quality.get("score")
+        # no shaft angle (no tach, no mesh line): the stored speed is a placeholder 0, no measurement
+        measured = quality.get("angle_source") != "none"
         rows.append(
             RecordRow(
                 record_id=record.id, label=record.label, taken_at=record.taken_at,
                 campaign=record.campaign.name, status=record.status, reason=record.reason,
-                file_name=record.file_name, sha256=record.sha256, speed_rpm=record.speed_rpm,
-                speed_variation=record.speed_variation,
+                file_name=record.file_name, sha256=record.sha256,
+                speed_rpm=record.speed_rpm if measured else None,
+                speed_variation=record.speed_variation if measured else None,
                 tach_repairs=(len(quality["tach_repairs"]) if "tach_repairs" in quality
                               and quality.get("angle_source", "tachometer") == "tachometer" else None),
                 quality_score=float(score) if isinstance(score, int | float) else None,

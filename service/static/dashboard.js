@@ -158,7 +158,8 @@ function qualityText(last) {
   const q = last.quality || {};
   const parts = [];
   if (Number.isFinite(last.quality_score)) parts.push(`score ${last.quality_score.toFixed(2)}`);
-  if (Number.isFinite(q.speed_variation)) parts.push(`speed variation ${(100 * q.speed_variation).toFixed(1)} %`);
+  // no shaft angle (no tach, no mesh line): the stored speed is a placeholder 0, not a measurement
+  if (Number.isFinite(q.speed_variation) && q.angle_source !== "none") parts.push(`speed variation ${(100 * q.speed_variation).toFixed(1)} %`);
   // synthetic pulses from the mesh phase are not a tach: their (empty) repair list says nothing
   const tach = !q.angle_source || q.angle_source === "tachometer";
   if (tach && Array.isArray(q.tach_repairs)) parts.push(`${q.tach_repairs.length} tach repair(s)`);

@@ -164,10 +164,13 @@ class RecordRepository(Repository[Record]):
         quality = analysis.quality
         record.status = "accepted"
         record.reason = ""
-        record.speed_rpm = float(analysis.speed_rpm)
-        record.speed_min_rpm = float(quality.speed_min_rpm)
-        record.speed_max_rpm = float(quality.speed_max_rpm)
-        record.speed_variation = float(quality.speed_variation)
+        # no shaft angle at all (no tach, no mesh line): whole-record metrics only, and no speed
+        # was measured — NULL, not the analysis' placeholder 0
+        measured = quality.angle_source != "none"
+        record.speed_rpm = float(analysis.speed_rpm) if measured else None
+        record.speed_min_rpm = float(quality.speed_min_rpm) if measured else None
+        record.speed_max_rpm = float(quality.speed_max_rpm) if measured else None
+        record.speed_variation = float(quality.speed_variation) if measured else None
         record.revolutions = int(analysis.revolutions)
         record.quality = json_safe(dataclasses.asdict(quality))
         record.processed_at = utcnow()

@@ -34,7 +34,7 @@ def _tachless(base: RecordAnalysis, kind: str) -> RecordAnalysis:
     channel = dataclasses.replace(
         channel, baseline_stats=stats, teeth=channel.teeth if kind == "campaign" else [])
     quality = dataclasses.replace(
-        base.quality, angle_source="mesh_phase",
+        base.quality, angle_source="none" if kind == "none" else "mesh_phase",
         tooth_frames={"acc": {"kind": kind, "reference_frame": "mesh_phase"}})
     return dataclasses.replace(base, channels=[channel], quality=quality)
 
@@ -146,3 +146,18 @@ def test_a_per_tooth_trend_names_the_records_whose_teeth_are_not_numbered(api: A
     assert without["record_id"] == ids[1] and without["label"] == "day 1"
     whole = api.get("/api/v1/rigs/rig-t/trends?indicator=kurtosis").json()
     assert len(whole["records"]) == 3 and whole["without_tooth_values"] == []
+
+
+def test_a_record_without_a_shaft_angle_has_no_speed_rather_than_zero(api: Api) -> None:
+    """No tach and no mesh line: the record keeps its whole-record metrics, and its speed is
+    unknown (NULL in the database, null in the API, "—" in the report), not 0 rpm."""
+    from gearwatch.usecases.report import collect
+
+    ids = _seed(api, ["campaign", "none"])
+    record = api.get(f"/api/v1/records/{ids[1]}").json()
+    assert record["status"] == "accepted"
+    assert record["speed_rpm"] is None and record["speed_variation"] is None
+    assert api.get(f"/api/v1/records/{ids[0]}").json()["speed_rpm"] == pytest.approx(1500.0)
+    with api.session() as session:
+        rows = {row.record_id: row for row in collect(session, "rig-t").records}
+    assert rows[ids[1]].speed_rpm is None and rows[ids[0]].speed_rpm == pytest.approx(1500.0)
