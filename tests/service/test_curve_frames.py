@@ -17,7 +17,7 @@ import pytest
 
 from gearwatch.floor.results import TOOTH1_ANGLE_KEY, RecordAnalysis
 from tests.service.conftest import Api
-from tests.storage.factories import analysis, campaign_config
+from tests.storage.factories import analysis, campaign_config, store_accepted
 
 T0 = dt.datetime(2026, 3, 1, 8, 0, tzinfo=dt.UTC)
 SAMPLES = 1280  # the factory's curves: 20 teeth × 64
@@ -48,12 +48,9 @@ def _seed(api: Api, kinds: list[str]) -> list[int]:
         records = RecordRepository(session)
         for day, kind in enumerate(kinds):
             sha = f"tachless-{day}".encode().hex().ljust(64, "0")[:64]
-            record = records.add(stored, sha256=sha, file_name=f"day{day}.wav",
-                                 raw_location=f"/nonexistent/{sha}.wav",
-                                 taken_at=T0 + dt.timedelta(days=day), label=f"day {day}")
-            result = _tachless(analysis(sha256=sha, curve_length=SAMPLES), kind)
-            records.mark_accepted(record, result)
-            records.add_result(record, result)
+            record = store_accepted(
+                records, stored, _tachless(analysis(sha256=sha, curve_length=SAMPLES), kind),
+                taken_at=T0 + dt.timedelta(days=day), file_name=f"day{day}.wav", label=f"day {day}")
             ids.append(record.id)
         session.commit()
     return ids
@@ -90,11 +87,9 @@ def test_a_tach_record_stored_before_the_angle_was_kept_stays_where_it_was(api: 
     with api.session() as session:
         stored = CampaignRepository(session).ensure(campaign_config("camp-old", "rig-old"))
         records = RecordRepository(session)
-        record = records.add(stored, sha256="a" * 64, file_name="old.wav",
-                             raw_location="/nonexistent/old.wav", taken_at=T0, label="old")
-        result = analysis(sha256="a" * 64, curve_length=SAMPLES)  # no angle kept, no tooth frame
-        records.mark_accepted(record, result)
-        records.add_result(record, result)
+        # no angle kept, no tooth frame
+        record = store_accepted(records, stored, analysis(sha256="a" * 64, curve_length=SAMPLES),
+                                taken_at=T0, file_name="old.wav", label="old")
         session.commit()
         record_id = record.id
     body = api.get(f"/api/v1/records/{record_id}/curves").json()

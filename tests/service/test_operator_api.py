@@ -12,7 +12,7 @@ import pytest
 
 from tests.service.conftest import Api
 from tests.service.seed import TEETH, Seeded, seed_campaign
-from tests.storage.factories import analysis, campaign_config
+from tests.storage.factories import analysis, campaign_config, store_accepted
 
 KURTOSIS_JUMP_DAY = 8
 
@@ -195,13 +195,11 @@ def _seed_pair(api: Api, campaign: str, teeth: int, day0: int, days: int) -> lis
         records = RecordRepository(session)
         for day in range(day0, day0 + days):
             sha = f"{campaign}{day}".encode().hex().ljust(64, "0")[:64]
-            record = records.add(
-                stored, sha256=sha, file_name=f"{campaign}{day}.wav", raw_location="/nonexistent",
+            record = store_accepted(
+                records, stored, analysis(sha256=sha, teeth=teeth, curve_length=64 * teeth),
                 taken_at=dt.datetime(2026, 4, 1, 8, tzinfo=dt.UTC) + dt.timedelta(days=day),
+                file_name=f"{campaign}{day}.wav",
             )
-            result_analysis = analysis(sha256=sha, teeth=teeth, curve_length=64 * teeth)
-            records.mark_accepted(record, result_analysis)
-            records.add_result(record, result_analysis)
             ids.append(record.id)
         session.commit()
     return ids

@@ -103,3 +103,16 @@ def analysis(
         revolutions=40,
         samples_per_rev=curve_length,
     )
+
+
+def store_accepted(
+    records: Any, campaign: Any, result: RecordAnalysis, *, taken_at: dt.datetime,
+    file_name: str, label: str = "", raw_location: str = "/nonexistent",
+) -> Any:
+    """Add a record to ``campaign`` through ``records`` (a RecordRepository), accept it with
+    ``result`` and store that result; returns the record."""
+    record = records.add(campaign, sha256=result.provenance.input_sha256, file_name=file_name,
+                         raw_location=raw_location, taken_at=taken_at, label=label)
+    records.mark_accepted(record, result)
+    records.add_result(record, result)
+    return record
