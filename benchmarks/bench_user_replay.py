@@ -47,9 +47,27 @@ tell: seed 10414's founding day (every later day sits one tooth from it, in agre
 other; the founding day's two averages matched a tooth off) and seed 10420's day 4 (0.73 of a
 tooth: between two teeth, which the match of two averages cannot decide).
 
-Six onsets fall on the last two days, so "by onset + 1" cannot reach 16 here. Why the tach-less
+Again on the next fresh seeds, 10425–10448, run once after the scoring was settled (the
+first-alarm day counted from the onset on, an earlier one as a false alarm)::
+
+    | variant | spalled | on onset day | by onset + 1 | first day's strongest on the spalled tooth | per-tooth before onset | whole-record before onset | healthy | healthy with any alarm |
+    | tach    | 16 | 5 | 6 | 7 | 1 | 1 | 8 | 0 |
+    | no tach | 16 | 3 | 4 | 3 | 0 | 0 | 8 | 0 |
+
+    tach-less against tach, on the 9 spalled campaigns the tach alarmed per tooth: first per-tooth
+    alarm within a day 4, its strongest alarm on the same tooth 4
+    tach-less days, by the same day's tach average: {'right': 104, 'wrong': 0, 'refused': 66, 'no angle': 22}
+
+The false alarms: seed 10430 (15/43 teeth, 2950 rpm, 19 % drift within each record, a gain step
+on day 3), the ``score`` rule on healthy tooth 1 on day 4 (its score 0.3 → 12.8, teeth 2 and 8
+rising with it, after a three-record baseline); seed 10441, the kurtosis of the average the day
+before onset. Seed 10444 (56 teeth) shows the tach-less limit: the tach alarms on the onset day
+at 43.5 noise units, while every tach-less day after the first is refused — its tooth pattern
+matches the founding day's at 0.10–0.13, the noise level — so no tach-less day is numbered at all.
+
+Six onsets of the first set fall on the last two days, so "by onset + 1" cannot reach 16 there. Why the tach-less
 days are fewer and weaker: ``docs/tachless.md``, "Replayed as a user would". Seeds 10400–10423 are
-spent; use fresh ones (≥ 10425 — 10424 ran as a smoke test —, and not 10300–10319, which ``bench_tachless.py`` spent).
+spent, and so are 10424 (a smoke test) and 10425–10448; use fresh ones (≥ 10449, not 10300–10319, which ``bench_tachless.py`` spent).
 """
 
 from __future__ import annotations
@@ -185,17 +203,23 @@ def _day(alarm: dict[str, Any]) -> int:
     return int(alarm["record_label"].split()[1])
 
 
-def _variant(folder: Path) -> dict[str, Any]:
+def _variant(folder: Path, onset: int | None) -> dict[str, Any]:
+    """A replay's alarms, split at the onset day: the first per-tooth (and whole-record) alarm
+    day from the onset on, the alarms opened on that day strongest first, and the earliest
+    alarm before the onset (a false alarm). Healthy campaigns (no onset): any alarm at all."""
     items = json.loads((folder / "alarms.json").read_text(encoding="utf-8"))["items"]
+    start = onset if onset is not None else 1
     per_tooth = [a for a in items if a["tooth"] is not None]
     whole = [a for a in items if a["tooth"] is None]
-    first_day = min((_day(a) for a in per_tooth), default=None)
+    first_day = min((_day(a) for a in per_tooth if _day(a) >= start), default=None)
     first = sorted((a for a in per_tooth if _day(a) == first_day), key=lambda a: -a["last_score"])
     summary = (folder / "replay.txt").read_text(encoding="utf-8").splitlines()[0]
     return {
         "tooth_day": first_day,
         "first": [(a["tooth"], a["indicator"], round(a["last_score"], 1)) for a in first],
-        "whole_day": min((_day(a) for a in whole), default=None),
+        "tooth_before": sorted((_day(a), a["tooth"], a["indicator"]) for a in per_tooth if _day(a) < start)[:1],
+        "whole_day": min((_day(a) for a in whole if _day(a) >= start), default=None),
+        "whole_before": sorted((_day(a), a["indicator"]) for a in whole if _day(a) < start)[:1],
         "whole_first": sorted((_day(a), a["indicator"]) for a in whole)[:1],
         "summary": summary.split(": ", 1)[-1],
     }
@@ -210,7 +234,7 @@ def _report(seeds: list[int], out: Path) -> None:
         onset = next((d["day"] for d in truth["days"] if d["spalled_teeth"]), None)
         tooth = truth["days"][-1]["spalled_teeth"][0]["tooth"] if onset else None
         geometry = truth["base_model"]["geometry"]
-        tach, notach = _variant(tach_dir), _variant(notach_dir)
+        tach, notach = _variant(tach_dir, onset), _variant(notach_dir, onset)
         mapping, frames = _tach_less_frames(tach_dir, notach_dir)
         for key, count in frames.items():
             totals[key] += count
@@ -220,7 +244,8 @@ def _report(seeds: list[int], out: Path) -> None:
               f"onset {onset} tooth {tooth}")
         for label, result, mapped in (("tach", tach, None), ("no tach", notach, notach_tooth)):
             where = f" (tach numbering: {mapped})" if mapped is not None else ""
-            print(f"    {label:8s} per-tooth day {result['tooth_day']}  {result['first'][:3]}{where}  "
+            early = f"  BEFORE ONSET: {result['tooth_before']}" if result["tooth_before"] else ""
+            print(f"    {label:8s} per-tooth day {result['tooth_day']}  {result['first'][:3]}{where}{early}  "
                   f"whole-record {result['whole_first']}  | {result['summary']}")
     print()
     print("| variant | spalled | on onset day | by onset + 1 | first day's strongest on the spalled tooth "
@@ -236,8 +261,8 @@ def _report(seeds: list[int], out: Path) -> None:
 
         right = sum(1 for r in spalled if r[index]["first"]
                     and (r[index]["first"][0][0] if index == 3 else r[5]) == r[2])
-        before = sum(1 for r in spalled if r[index]["tooth_day"] is not None and r[index]["tooth_day"] < r[1])
-        whole_before = sum(1 for r in spalled if r[index]["whole_day"] is not None and r[index]["whole_day"] < r[1])
+        before = sum(1 for r in spalled if r[index]["tooth_before"])
+        whole_before = sum(1 for r in spalled if r[index]["whole_before"])
         false = sum(1 for r in healthy if r[index]["tooth_day"] is not None or r[index]["whole_day"] is not None)
         print(f"| {label} | {len(spalled)} | {sum(by(r, 0) for r in spalled)} | {sum(by(r, 1) for r in spalled)} "
               f"| {right} | {before} | {whole_before} | {len(healthy)} | {false} |")
