@@ -259,6 +259,22 @@ def in_pair_frame(values: np.ndarray, tooth1_deg: float, pair_tooth1_deg: float)
     return np.roll(values, shift)
 
 
+def mci_in_pair_frame(
+    records: RecordRepository, result: Any, channel: str, pair_tooth1_deg: float,
+) -> tuple[CurveFrame, np.ndarray | None]:
+    """A result version's stored ``mci`` curve on ``channel`` turned into the pair's tooth frame
+    (:func:`curve_frame`, :func:`in_pair_frame`), with the frame it was stored in; the curve is
+    None when there is none or the record's teeth are not numbered."""
+    stats = next((c.baseline_stats for c in records.channel_results(result.id)
+                  if c.channel.name == channel), None)
+    frame = curve_frame(result.quality, stats, channel, pair_tooth1_deg)
+    found = records.curves(result.id, channel=channel, names=["mci"])
+    if not found or frame.tooth1_pitch_angle_deg is None:
+        return frame, None
+    return frame, in_pair_frame(found[0].values.astype(np.float64),
+                                frame.tooth1_pitch_angle_deg, pair_tooth1_deg)
+
+
 def mci_band(
     session: Session, rig_pk: int, channel: str, *, relative: bool = False,
     campaign_ids: Sequence[int] | None = None, pair_tooth1_deg: float | None = None,
@@ -295,13 +311,8 @@ def mci_band(
         result = records.current_result(record.id)
         if result is None:
             continue
-        stats = next((c.baseline_stats for c in records.channel_results(result.id)
-                      if c.channel.name == channel), None)
-        frame = curve_frame(result.quality, stats, channel, pair_tooth1_deg)
-        found = records.curves(result.id, channel=channel, names=["mci"])
-        if found and frame.tooth1_pitch_angle_deg is not None:
-            values = in_pair_frame(found[0].values.astype(np.float64),
-                                   frame.tooth1_pitch_angle_deg, pair_tooth1_deg)
+        _, values = mci_in_pair_frame(records, result, channel, pair_tooth1_deg)
+        if values is not None:
             curves.append(relative_to_median(values) if relative else values)
     if not curves:
         return None

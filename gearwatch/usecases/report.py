@@ -29,9 +29,8 @@ from gearwatch.floor.indicators import indicator_info, indicator_unit
 from gearwatch.floor.version import code_version
 from storage.operator_queries import (
     OperatorQueries,
-    curve_frame,
-    in_pair_frame,
     mci_band,
+    mci_in_pair_frame,
     relative_to_median,
     tooth_sector_list,
 )
@@ -373,16 +372,11 @@ def _mci_curves(
         result = records_repo.current_result(day.record_id)
         if result is None:
             continue
-        stats = next((c.baseline_stats for c in records_repo.channel_results(result.id)
-                      if c.channel.name == channel), None)
         # a tach-less record's curve is in the campaign's tooth frame: turned into the pair's,
         # where the sectors are drawn; one whose teeth are not numbered is left out
-        frame = curve_frame(result.quality, stats, channel, pair_tooth1)
-        own_tooth1 = frame.tooth1_pitch_angle_deg
-        data = records_repo.curves(result.id, channel=channel, names=["mci"])
-        if data and own_tooth1 is not None:
+        frame, turned = mci_in_pair_frame(records_repo, result, channel, pair_tooth1)
+        if turned is not None:
             tachless = tachless or frame.kind != "tachometer"
-            turned = in_pair_frame(data[0].values, own_tooth1, pair_tooth1)
             found.append((record_name(day.label, day.taken_at), relative_to_median(turned).tolist()))
     if not found:
         return None
